@@ -1,0 +1,1 @@
+"""Force kernels, written once and used by every engine (fast, bullet, reference)."""

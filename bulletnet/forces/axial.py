@@ -1,0 +1,85 @@
+"""Tension-only Kelvin-Voigt threads (Eq. 3), compiled with numba.
+
+For thread p from node i to node j: l = |x_j - x_i|, e = (x_j - x_i) / l,
+v_r = (v_j - v_i) . e, T = k (l - l_0) + c v_r. The force +T e acts on i and -T e on j only
+if l > l_0 and T > 0; otherwise the thread pushes nothing and its tension is exactly zero.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+
+@nb.njit(cache=True, inline="always")
+def thread_tension(p, pos, vel, pairs, rest, k, c):
+    """Tension T [N] of thread p and its unit direction e (i -> j) and length l [m].
+
+    Returns (T, ex, ey, ez, l); T is 0.0 for a slack thread or one closing faster than its
+    spring holds (Eq. 3)."""
+    i, j = pairs[p, 0], pairs[p, 1]
+    dx = pos[j, 0] - pos[i, 0]
+    dy = pos[j, 1] - pos[i, 1]
+    dz = pos[j, 2] - pos[i, 2]
+    length = np.sqrt(dx * dx + dy * dy + dz * dz)
+    if length <= rest[p]:
+        return 0.0, 0.0, 0.0, 0.0, length
+    ex, ey, ez = dx / length, dy / length, dz / length
+    vr = ((vel[j, 0] - vel[i, 0]) * ex + (vel[j, 1] - vel[i, 1]) * ey
+          + (vel[j, 2] - vel[i, 2]) * ez)
+    tension = k[p] * (length - rest[p]) + c[p] * vr
+    if tension <= 0.0:
+        return 0.0, ex, ey, ez, length
+    return tension, ex, ey, ez, length
+
+
+@nb.njit(cache=True)
+def axial_forces(pos, vel, pairs, rest, k, c, force, tension):
+    """Add every thread's force [N] into ``force`` (N, 3); write tensions [N] into ``tension`` (P,)."""
+    for p in range(pairs.shape[0]):
+        t, ex, ey, ez, _ = thread_tension(p, pos, vel, pairs, rest, k, c)
+        tension[p] = t
+        if t > 0.0:
+            i, j = pairs[p, 0], pairs[p, 1]
+            force[i, 0] += t * ex
+            force[i, 1] += t * ey
+            force[i, 2] += t * ez
+            force[j, 0] -= t * ex
+            force[j, 1] -= t * ey
+            force[j, 2] -= t * ez
+
+
+@nb.njit(cache=True)
+def axial_linearization(pos, vel, pairs, rest, k, c, dt, force, tension, along, across, axis):
+    """Thread forces as :func:`axial_forces`, plus each taut thread's implicit-Euler block.
+
+    The block of thread p in dt * dF/dv + dt^2 * dF/dx (with the non-symmetric d(v_r)/dx term
+    dropped) is ``across[p] * I + (along[p] - across[p]) * e e^T``, e = ``axis[p]``:
+    along = dt c + dt^2 k [kg], across = dt^2 k (l - l_0) / l [kg] (geometric stiffness).
+    Slack threads get zero blocks."""
+    for p in range(pairs.shape[0]):
+        t, ex, ey, ez, length = thread_tension(p, pos, vel, pairs, rest, k, c)
+        tension[p] = t
+        axis[p, 0], axis[p, 1], axis[p, 2] = ex, ey, ez
+        if t > 0.0:
+            i, j = pairs[p, 0], pairs[p, 1]
+            force[i, 0] += t * ex
+            force[i, 1] += t * ey
+            force[i, 2] += t * ez
+            force[j, 0] -= t * ex
+            force[j, 1] -= t * ey
+            force[j, 2] -= t * ez
+            along[p] = dt * c[p] + dt * dt * k[p]
+            across[p] = dt * dt * k[p] * (length - rest[p]) / length
+        else:
+            along[p] = 0.0
+            across[p] = 0.0
+
+
+def axial_energy(pos: np.ndarray, pairs: np.ndarray, rest: np.ndarray, k: np.ndarray) -> float:
+    """Elastic energy [J] stored in the stretched threads: sum of k (l - l_0)^2 / 2 over l > l_0.
+
+    ``pos`` may be (N, 3) or (T, N, 3); the result is then a scalar or shape (T,)."""
+    d = pos[..., pairs[:, 1], :] - pos[..., pairs[:, 0], :]
+    stretch = np.maximum(np.linalg.norm(d, axis=-1) - rest, 0.0)
+    return 0.5 * np.sum(k * stretch**2, axis=-1)

@@ -1,0 +1,68 @@
+"""The immutable net model: topology, masses and thread parameters as arrays.
+
+N = Ns**2 + 4 nodes (net nodes row by row, then the four corner masses); P = 2 Ns (Ns - 1) + 4
+threads (inner threads in Eq. 1's order, then the four corner threads). Indices are 0-based:
+the paper's node k is index k - 1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+
+class NodeKind(IntEnum):
+    """Kind of a node, as used in the contact tables (Tables 5-6)."""
+
+    INNER = 0
+    EDGE = 1
+    CORNER = 2
+    CORNER_MASS = 3
+
+
+@dataclass(frozen=True)
+class NetModel:
+    nodes_per_side: int
+    """Ns [-]."""
+    mass: np.ndarray
+    """Node masses [kg], shape (N,) (Eq. 2; corner masses include m_CM)."""
+    radius: np.ndarray
+    """Node sphere radii [m], shape (N,): (3 m / 4 pi rho)^(1/3) with the node's material."""
+    kind: np.ndarray
+    """Node kinds (:class:`NodeKind` values) [-], shape (N,), int8."""
+    pairs: np.ndarray
+    """Thread end nodes (i, j), i -> j [-], shape (P, 2), int64."""
+    rest_length: np.ndarray
+    """Thread rest lengths l_0 [m], shape (P,)."""
+    thread_radius: np.ndarray
+    """Thread section radii [m], shape (P,)."""
+    axial_stiffness: np.ndarray
+    """k_a = E A / l_0 [N/m], shape (P,) (Eq. 3)."""
+    axial_damping: np.ndarray
+    """c_a = 2 xi_a k_a / omega_ref [N s/m], shape (P,)."""
+    transverse_stiffness: np.ndarray
+    """k_t = 3 E I / l_0^3 [N/m], shape (P,) (Eq. 5)."""
+    transverse_damping: np.ndarray
+    """c_t = 2 xi_b k_t / omega_t [N s/m], shape (P,)."""
+    bending_stiffness: np.ndarray
+    """k_b = E I / l_0 [N m/rad], shape (P,) (Eq. 4)."""
+    bending_damping: np.ndarray
+    """c_b = 2 xi_b k_b / omega_b [N m s/rad], shape (P,)."""
+
+    def __post_init__(self):
+        for name in self.__dataclass_fields__:
+            value = getattr(self, name)
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+
+    @property
+    def node_count(self) -> int:
+        """N, nodes including the four corner masses [-]."""
+        return self.mass.shape[0]
+
+    @property
+    def thread_count(self) -> int:
+        """P, threads including the four corner threads [-]."""
+        return self.pairs.shape[0]

@@ -1,0 +1,142 @@
+"""HDF5 recordings, written while the run goes.
+
+Layout (``format_version`` 1; every dataset has a ``units`` attribute):
+
+========================  ============  =====================================================
+path                      shape         meaning
+========================  ============  =====================================================
+/time                     (T,)          sample times [s]
+/nodes/position           (T, N, 3)     node positions [m]
+/nodes/velocity           (T, N, 3)     node velocities [m/s]
+/nodes/mass               (N,)          node masses [kg]
+/nodes/radius             (N,)          node sphere radii [m]
+/nodes/kind               (N,)          0 inner, 1 edge, 2 corner, 3 corner mass [-]
+/threads/pairs            (P, 2)        end nodes i -> j, 0-based [-]
+/threads/rest_length      (P,)          l_0 [m]
+/threads/stiffness        (P,)          k_a [N/m]
+/threads/damping          (P,)          c_a [N s/m]
+/threads/tension          (T, P)        axial tension, 0 when slack [N]
+========================  ============  =====================================================
+
+Root attributes: ``scenario`` (the TOML as run, overrides applied), ``engine``,
+``integrator``, ``dt`` [s], ``record_rate`` [Hz], ``bending``, ``status`` (running /
+completed / interrupted / diverged), ``message``, ``wall_time_s`` [s], ``bulletnet_version``,
+``format_version``, ``nodes_per_side``.
+
+The file is written as ``NAME.part`` in SWMR mode, flushed every ``flush_interval`` seconds of
+wall time, and renamed to ``NAME`` when the run ends however it ends. After a hard kill the
+``.part`` file still opens and holds every frame up to the last flush, with status
+``running``.
+"""
+
+from __future__ import annotations
+
+import os
+import time as _time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import RecordingError
+from .model import NetModel
+
+FORMAT_VERSION = 1
+FLUSH_INTERVAL_S = 1.0
+"""Default wall-clock interval between flushes to disk [s]."""
+
+STATUSES = ("running", "completed", "interrupted", "diverged")
+
+
+class Recorder:
+    """Append frames of a run to an HDF5 file; use as a context manager or call :meth:`close`."""
+
+    def __init__(self, path: str | os.PathLike, model: NetModel, attrs: dict,
+                 flush_interval: float = FLUSH_INTERVAL_S):
+        import h5py
+
+        self.path = Path(path)
+        self.part_path = self.path.with_name(self.path.name + ".part")
+        self.flush_interval = flush_interval
+        self.frames = 0
+        n, p = model.node_count, model.thread_count
+        try:
+            f = h5py.File(self.part_path, "w", libver="latest")
+        except OSError as exc:
+            raise RecordingError(f"{self.part_path}: cannot create: {exc}") from None
+        self._file = f
+        for key, value in attrs.items():
+            f.attrs[key] = value
+        f.attrs["status"] = "running"
+        f.attrs["message"] = ""
+        f.attrs["format_version"] = FORMAT_VERSION
+        f.attrs["nodes_per_side"] = model.nodes_per_side
+
+        def static(name, data, units):
+            f.create_dataset(name, data=data).attrs["units"] = units
+
+        def growing(name, shape, units):
+            ds = f.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape),
+                                  chunks=(16, *shape), dtype="f8")
+            ds.attrs["units"] = units
+            return ds
+
+        static("nodes/mass", model.mass, "kg")
+        static("nodes/radius", model.radius, "m")
+        static("nodes/kind", model.kind, "1")
+        static("threads/pairs", model.pairs, "1")
+        static("threads/rest_length", model.rest_length, "m")
+        static("threads/stiffness", model.axial_stiffness, "N/m")
+        static("threads/damping", model.axial_damping, "N*s/m")
+        self._series = {
+            "time": growing("time", (), "s"),
+            "position": growing("nodes/position", (n, 3), "m"),
+            "velocity": growing("nodes/velocity", (n, 3), "m/s"),
+            "tension": growing("threads/tension", (p,), "N"),
+        }
+        f.swmr_mode = True
+        self._last_flush = _time.monotonic()
+
+    def append(self, time: float, position: np.ndarray, velocity: np.ndarray,
+               tension: np.ndarray) -> None:
+        """Add one frame: time [s], positions (N, 3) [m], velocities (N, 3) [m/s], tensions (P,) [N]."""
+        k = self.frames
+        for name, value in (("time", time), ("position", position), ("velocity", velocity),
+                            ("tension", tension)):
+            ds = self._series[name]
+            ds.resize(k + 1, axis=0)
+            ds[k] = value
+        self.frames += 1
+        if _time.monotonic() - self._last_flush >= self.flush_interval:
+            self.flush()
+
+    def flush(self) -> None:
+        """Push every frame so far to disk (readable after a hard kill)."""
+        for ds in self._series.values():
+            ds.flush()
+        self._last_flush = _time.monotonic()
+
+    def close(self, status: str, message: str = "", **attrs) -> Path:
+        """Flush, mark the run with ``status``, close and rename to the final path."""
+        import h5py
+
+        assert status in STATUSES
+        if self._file is None:
+            return self.path
+        self.flush()
+        self._file.close()
+        self._file = None
+        with h5py.File(self.part_path, "r+") as f:
+            f.attrs["status"] = status
+            f.attrs["message"] = message
+            for key, value in attrs.items():
+                f.attrs[key] = value
+        os.replace(self.part_path, self.path)
+        return self.path
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if self._file is not None:
+            self.close("interrupted" if exc_type else "completed",
+                       f"{exc_type.__name__}: {exc}" if exc_type else "")

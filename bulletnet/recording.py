@@ -1,0 +1,97 @@
+"""Read bulletnet recordings (the layout is documented in :mod:`bulletnet.recorder`)."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import RecordingError
+from .model import NodeKind
+from .recorder import FORMAT_VERSION
+
+
+@dataclass(frozen=True)
+class Recording:
+    path: Path
+    attrs: dict
+    """Root attributes (scenario TOML, engine, integrator, dt [s], status, ...)."""
+    time: np.ndarray
+    """Sample times [s], shape (T,)."""
+    position: np.ndarray
+    """Node positions [m], shape (T, N, 3)."""
+    velocity: np.ndarray
+    """Node velocities [m/s], shape (T, N, 3)."""
+    tension: np.ndarray
+    """Thread tensions [N], shape (T, P)."""
+    mass: np.ndarray
+    """Node masses [kg], shape (N,)."""
+    radius: np.ndarray
+    """Node radii [m], shape (N,)."""
+    kind: np.ndarray
+    """Node kinds [-], shape (N,)."""
+    pairs: np.ndarray
+    """Thread end nodes [-], shape (P, 2)."""
+    rest_length: np.ndarray
+    """Thread rest lengths [m], shape (P,)."""
+
+    @property
+    def nodes_per_side(self) -> int:
+        """Ns [-]."""
+        return int(self.attrs["nodes_per_side"])
+
+    @property
+    def status(self) -> str:
+        return str(self.attrs.get("status", "unknown"))
+
+    @property
+    def net_node_count(self) -> int:
+        """Ns^2, nodes without the corner masses [-]."""
+        return int(np.count_nonzero(self.kind != NodeKind.CORNER_MASS))
+
+
+def open_recording(path: str | os.PathLike) -> Recording:
+    """Load a recording fully into memory; a clear :class:`RecordingError` if it is not one."""
+    import h5py
+
+    p = Path(path)
+    if not p.is_file():
+        raise RecordingError(f"{p}: no such recording")
+    try:
+        f = h5py.File(p, "r", swmr=True)
+    except OSError:
+        try:
+            f = h5py.File(p, "r")
+        except OSError as exc:
+            raise RecordingError(f"{p}: not a readable HDF5 file ({exc})") from None
+    with f:
+        if "format_version" not in f.attrs or "nodes/position" not in f:
+            raise RecordingError(f"{p}: not a bulletnet recording")
+        version = int(f.attrs["format_version"])
+        if version > FORMAT_VERSION:
+            raise RecordingError(
+                f"{p}: recording format {version} is newer than this bulletnet reads "
+                f"({FORMAT_VERSION}); upgrade bulletnet")
+        try:
+            frames = min(f["time"].shape[0], f["nodes/position"].shape[0],
+                         f["nodes/velocity"].shape[0], f["threads/tension"].shape[0])
+            rec = Recording(
+                path=p,
+                attrs={k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()},
+                time=f["time"][:frames],
+                position=f["nodes/position"][:frames],
+                velocity=f["nodes/velocity"][:frames],
+                tension=f["threads/tension"][:frames],
+                mass=f["nodes/mass"][()],
+                radius=f["nodes/radius"][()],
+                kind=f["nodes/kind"][()],
+                pairs=f["threads/pairs"][()],
+                rest_length=f["threads/rest_length"][()],
+            )
+        except (KeyError, OSError) as exc:
+            raise RecordingError(f"{p}: damaged recording ({exc})") from None
+    if rec.time.shape[0] == 0:
+        raise RecordingError(f"{p}: recording holds no frames")
+    return rec

@@ -1,0 +1,346 @@
+"""Scenes: TOML files parsed into frozen, validated dataclasses in SI units.
+
+A scene file has one table per section below. Every key has a unit (in its docstring and in
+``bulletnet params``) and a default; unknown keys, wrong types and out-of-range values are
+errors naming the file, the key and what was expected. ``--set section.key=value`` overrides
+use the same validation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import ScenarioError
+
+SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+"""Folder of the named scenes shipped with the project (``bulletnet run deployment``)."""
+
+ENGINES = ("fast", "bullet", "reference")
+INTEGRATORS = ("symplectic_euler", "implicit_euler")
+
+
+def _f(default, unit: str, check: str = "", choices: tuple = ()):
+    """A dataclass field carrying its SI unit and its validation rule."""
+    return field(default=default, metadata={"unit": unit, "check": check, "choices": choices})
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str = _f("unnamed", "-")
+    """Short name of the scene [-]."""
+    description: str = _f("", "-")
+    """One-line description [-]."""
+    duration: float = _f(3.0, "s", ">0")
+    """Simulated time [s]."""
+    gravity: tuple = _f((0.0, 0.0, 0.0), "m/s^2", "vec3")
+    """Uniform gravitational acceleration [m/s^2], shape (3,)."""
+
+
+@dataclass(frozen=True)
+class Net:
+    nodes_per_side: int = _f(11, "-", ">=2")
+    """Ns, nodes on a side of the square net [-] (Eq. 1)."""
+    mesh_length: float = _f(0.5, "m", ">0")
+    """Rest length of an inner thread [m] (l_mesh, Table 1)."""
+    corner_thread_length: float = _f(0.7071, "m", ">0")
+    """Rest length of a corner thread [m] (l_CT, Table 1)."""
+    corner_mass: float = _f(0.5, "kg", ">0")
+    """Mass of each corner mass, without its half corner thread [kg] (m_CM, Table 1)."""
+    thread_radius: float = _f(0.001, "m", ">0")
+    """Radius of an inner thread [m] (r_net, Table 1)."""
+    corner_thread_radius: float = _f(0.002, "m", ">0")
+    """Radius of a corner thread [m] (r_CT, Table 1)."""
+    fold_ratio: float = _f(0.25, "-", "(0,1]")
+    """Initial distance between adjacent nodes over their rest length [-] (Sec. 4: 1/4)."""
+    center: tuple = _f((0.0, 0.0, 0.0), "m", "vec3")
+    """Initial position of the net's centre [m], shape (3,)."""
+
+
+@dataclass(frozen=True)
+class Material:
+    young_modulus: float = _f(70e9, "Pa", ">0")
+    """Young's modulus E [Pa]."""
+    density: float = _f(1390.0, "kg/m^3", ">0")
+    """Density rho [kg/m^3]."""
+    poisson_ratio: float = _f(0.35, "-", "[0,0.5)")
+    """Poisson's ratio nu [-]."""
+
+
+@dataclass(frozen=True)
+class Materials:
+    net: Material = field(default_factory=Material)
+    """Thread material (Technora by default)."""
+    corner_mass: Material = field(
+        default_factory=lambda: Material(young_modulus=69e9, density=2700.0, poisson_ratio=0.33))
+    """Corner-mass material (aluminium by default)."""
+    debris: Material = field(
+        default_factory=lambda: Material(young_modulus=69e9, density=2700.0, poisson_ratio=0.33))
+    """Debris material (aluminium by default)."""
+
+
+@dataclass(frozen=True)
+class Damping:
+    axial_ratio: float = _f(0.106, "-", ">=0")
+    """Axial damping ratio xi_a [-] (Table 1)."""
+    axial_reference_frequency: float = _f(100.544, "rad/s", ">0")
+    """omega in c_a = 2 xi_a k_a / omega [rad/s]; 100.544 reproduces Table 7 (c_a/k_a = 2.1085e-3 s)."""
+    bending_ratio: float = _f(0.014, "-", ">=0")
+    """Bending damping ratio xi_b [-] (Table 1)."""
+
+
+@dataclass(frozen=True)
+class Launch:
+    corner_speed: float = _f(2.5, "m/s", ">=0")
+    """Initial speed of each corner mass [m/s] (Sec. 4)."""
+    elevation: float = _f(45.0, "deg", "[-90,90]")
+    """Angle of the corner-mass velocity above the net plane [deg]; in plane it points radially out."""
+
+
+@dataclass(frozen=True)
+class Contact:
+    enabled: bool = _f(False, "-")
+    """Whether the scene has contact at all; a contact-free scene builds no collision shapes."""
+    damping_ratio: float = _f(0.01, "-", ">=0")
+    """Contact damping ratio xi in c_c = 2 xi sqrt(k_c m_c) [-] (Sec. 3.3)."""
+
+
+@dataclass(frozen=True)
+class Simulation:
+    engine: str = _f("fast", "-", "choice", ENGINES)
+    """Engine: fast (compiled kernels), bullet (PyBullet bodies) or reference (scipy solve_ivp)."""
+    integrator: str = _f("implicit_euler", "-", "choice", INTEGRATORS)
+    """Time integrator of the fast and bullet engines."""
+    dt: float = _f(0.0, "s", ">=0")
+    """Time step [s]; 0 picks the engine's and integrator's default."""
+    record_rate: float = _f(100.0, "Hz", ">0")
+    """Frames recorded per simulated second [Hz]."""
+    rtol: float = _f(1e-8, "-", ">0")
+    """Relative tolerance of the reference engine [-]."""
+    atol: float = _f(1e-10, "-", ">0")
+    """Absolute tolerance of the reference engine [m, m/s]."""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    scene: Scene = field(default_factory=Scene)
+    net: Net = field(default_factory=Net)
+    materials: Materials = field(default_factory=Materials)
+    damping: Damping = field(default_factory=Damping)
+    launch: Launch = field(default_factory=Launch)
+    contact: Contact = field(default_factory=Contact)
+    simulation: Simulation = field(default_factory=Simulation)
+    source: str = field(default="<defaults>", compare=False)
+    """Where the scene came from (file path or name), for error messages."""
+
+    def with_overrides(self, overrides: dict[str, Any]) -> Scenario:
+        """Return a copy with dotted-key overrides (``{"net.nodes_per_side": 6}``) applied."""
+        doc = to_dict(self)
+        for key, value in overrides.items():
+            _set_dotted(doc, key, value, self.source)
+        return from_dict(doc, self.source)
+
+
+# ---------------------------------------------------------------------------------------------
+# validation
+
+def _check_value(value: Any, f: dataclasses.Field, where: str) -> Any:
+    """Validate one scalar/vector value against its field's type and rule; return it in SI."""
+    check, unit = f.metadata.get("check", ""), f.metadata.get("unit", "-")
+    unit_txt = "" if unit == "-" else f" [{unit}]"
+    typ = f.type if isinstance(f.type, str) else f.type.__name__
+    if typ == "bool":
+        if not isinstance(value, bool):
+            raise ScenarioError(f"{where}: expected true or false, got {value!r}")
+        return value
+    if typ == "str":
+        if not isinstance(value, str):
+            raise ScenarioError(f"{where}: expected a string, got {value!r}")
+        choices = f.metadata.get("choices", ())
+        if choices and value not in choices:
+            raise ScenarioError(f"{where}: expected one of {', '.join(choices)}, got {value!r}")
+        return value
+    if check == "vec3":
+        if (not isinstance(value, (list, tuple)) or len(value) != 3
+                or not all(_is_number(v) for v in value)):
+            raise ScenarioError(f"{where}: expected a list of 3 numbers{unit_txt}, got {value!r}")
+        if not all(math.isfinite(v) for v in value):
+            raise ScenarioError(f"{where}: expected finite numbers{unit_txt}, got {value!r}")
+        return tuple(float(v) for v in value)
+    if typ == "int":
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise ScenarioError(f"{where}: expected an integer, got {value!r}")
+    elif not _is_number(value):
+        raise ScenarioError(f"{where}: expected a number{unit_txt}, got {value!r}")
+    if not math.isfinite(value):
+        raise ScenarioError(f"{where}: expected a finite number{unit_txt}, got {value!r}")
+    ok = {
+        "": True,
+        ">0": value > 0,
+        ">=0": value >= 0,
+        ">=2": value >= 2,
+        "(0,1]": 0 < value <= 1,
+        "[0,0.5)": 0 <= value < 0.5,
+        "[-90,90]": -90 <= value <= 90,
+    }[check]
+    if not ok:
+        expect = {">0": "a positive number", ">=0": "a number >= 0", ">=2": "an integer >= 2",
+                  "(0,1]": "a number in (0, 1]", "[0,0.5)": "a number in [0, 0.5)",
+                  "[-90,90]": "a number in [-90, 90]"}[check]
+        raise ScenarioError(f"{where}: expected {expect}{unit_txt}, got {value!r}")
+    return int(value) if typ == "int" else float(value)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _build(cls, doc: Any, path: str, source: str):
+    """Build dataclass ``cls`` from the mapping ``doc`` found at dotted ``path`` of ``source``."""
+    if not isinstance(doc, dict):
+        raise ScenarioError(f"{source}: [{path}] must be a table, got {doc!r}")
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.name != "source"}
+    unknown = sorted(set(doc) - set(fields))
+    if unknown:
+        key = f"{path}.{unknown[0]}" if path else unknown[0]
+        raise ScenarioError(
+            f"{source}: unknown key '{key}' (expected one of: {', '.join(fields)})")
+    kwargs = {}
+    for name, f in fields.items():
+        if name not in doc:
+            continue
+        where = f"{source}: {path}.{name}" if path else f"{source}: {name}"
+        sub = f.type if not isinstance(f.type, str) else globals().get(f.type)
+        if dataclasses.is_dataclass(sub):
+            kwargs[name] = _build(sub, doc[name], f"{path}.{name}" if path else name, source)
+        else:
+            kwargs[name] = _check_value(doc[name], f, where)
+    return cls(**kwargs)
+
+
+def from_dict(doc: dict, source: str = "<dict>") -> Scenario:
+    """Validate a scene document (as parsed from TOML) into a :class:`Scenario`."""
+    scenario = _build(Scenario, doc, "", source)
+    _check_consistency(scenario)
+    return dataclasses.replace(scenario, source=source)
+
+
+def _check_consistency(s: Scenario) -> None:
+    """Rules that involve more than one key."""
+    step = s.simulation.dt
+    if step > 0 and s.simulation.record_rate * step > 1.0 + 1e-12:
+        raise ScenarioError(
+            f"{s.source}: simulation.record_rate: {s.simulation.record_rate} Hz is above the step "
+            f"rate 1/dt = {1 / step:g} Hz; lower the record rate or the step")
+    if step > s.scene.duration:
+        raise ScenarioError(
+            f"{s.source}: simulation.dt: {step} s is longer than scene.duration "
+            f"{s.scene.duration} s")
+
+
+def to_dict(s: Any) -> dict:
+    """The scene as a plain nested dict (TOML-ready), without its ``source``."""
+    out = {}
+    for f in dataclasses.fields(s):
+        if f.name == "source":
+            continue
+        v = getattr(s, f.name)
+        out[f.name] = to_dict(v) if dataclasses.is_dataclass(v) else (
+            list(v) if isinstance(v, tuple) else v)
+    return out
+
+
+def to_toml(s: Scenario) -> str:
+    """Serialize a scene to TOML text that :func:`loads` reads back to an equal scene."""
+    lines: list[str] = []
+
+    def emit(table: dict, prefix: str) -> None:
+        scalars = {k: v for k, v in table.items() if not isinstance(v, dict)}
+        if scalars:
+            lines.append(f"[{prefix}]")
+            lines.extend(f"{k} = {_toml_value(v)}" for k, v in scalars.items())
+            lines.append("")
+        for k, v in table.items():
+            if isinstance(v, dict):
+                emit(v, f"{prefix}.{k}" if prefix else k)
+
+    emit(to_dict(s), "")
+    return "\n".join(lines)
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {v!r} as TOML")
+
+
+def _set_dotted(doc: dict, key: str, value: Any, source: str) -> None:
+    parts = key.split(".")
+    node = doc
+    for i, part in enumerate(parts[:-1]):
+        if not isinstance(node.get(part), dict):
+            raise ScenarioError(
+                f"{source}: override '{key}': no table '{'.'.join(parts[:i + 1])}'")
+        node = node[part]
+    if parts[-1] not in node or isinstance(node[parts[-1]], dict):
+        raise ScenarioError(f"{source}: override '{key}': unknown key")
+    node[parts[-1]] = value
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """Parse ``KEY=VALUE`` (VALUE in TOML syntax; bare words are strings) into a pair."""
+    if "=" not in text:
+        raise ScenarioError(f"--set {text!r}: expected KEY=VALUE, e.g. net.nodes_per_side=6")
+    key, raw = (p.strip() for p in text.split("=", 1))
+    if not key:
+        raise ScenarioError(f"--set {text!r}: empty key")
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return key, value
+
+
+def resolve_path(name_or_path: str) -> Path:
+    """A scene given as a path, or by name from the shipped ``scenarios/`` folder."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists():
+        if not p.is_file():
+            raise ScenarioError(f"{name_or_path}: no such scene file")
+        return p
+    named = SCENARIO_DIR / f"{name_or_path}.toml"
+    if named.is_file():
+        return named
+    known = sorted(q.stem for q in SCENARIO_DIR.glob("*.toml"))
+    raise ScenarioError(
+        f"{name_or_path}: no such scene (named scenes: {', '.join(known) or 'none'})")
+
+
+def loads(text: str, source: str = "<string>") -> Scenario:
+    """Parse and validate scene TOML text."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
+    return from_dict(doc, source)
+
+
+def load(name_or_path: str, overrides: dict[str, Any] | None = None) -> Scenario:
+    """Load a scene by name (``"deployment"``) or path, applying dotted-key overrides."""
+    path = resolve_path(name_or_path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc}") from None
+    scenario = loads(text, str(path))
+    return scenario.with_overrides(overrides) if overrides else scenario

@@ -1,0 +1,135 @@
+"""Run a scene: scenario -> model -> engine -> recorder."""
+
+from __future__ import annotations
+
+import math
+import os
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .builder import build_model, initial_state
+from .engines import make_engine
+from .errors import DivergenceError, ScenarioError
+from .recorder import Recorder
+from .scenario import Scenario, to_toml
+from .state import NetState
+
+Progress = Callable[[float, float, float], None]
+"""Called after each recorded frame with (simulated time [s], duration [s], wall time [s])."""
+
+
+@dataclass
+class RunResult:
+    path: Path | None
+    """The recording written, if any."""
+    status: str
+    """completed, interrupted or diverged."""
+    state: NetState
+    """The last state reached."""
+    wall_time_s: float
+    """Wall-clock time of the integration [s]."""
+    stats: dict
+    """Engine counters (steps, solver iterations)."""
+    frames: int
+    """Frames recorded [-]."""
+
+
+def frame_times(duration: float, record_rate: float) -> np.ndarray:
+    """Sample times [s]: every 1 / record_rate from 0, plus ``duration`` itself, shape (T,)."""
+    count = math.floor(duration * record_rate + 1e-9)
+    times = np.arange(count + 1) / record_rate
+    if duration - times[-1] > 1e-9 * max(1.0, duration):
+        times = np.append(times, duration)
+    return times
+
+
+def speed_limit(s: Scenario, state: NetState) -> float:
+    """Node speed [m/s] above which a run is taken to have diverged: 100 times the largest
+    speed the scene can explain (initial speeds plus free fall over the whole duration)."""
+    g = float(np.linalg.norm(s.scene.gravity))
+    v0 = float(np.linalg.norm(state.velocity, axis=1).max())
+    return 100.0 * (v0 + g * s.scene.duration + 1.0)
+
+
+def _check(state: NetState, limit: float, dt: float) -> None:
+    if not np.isfinite(state.position).all() or not np.isfinite(state.velocity).all():
+        raise DivergenceError(
+            f"diverged at t = {state.time:.6g} s: non-finite state with step {dt:.3g} s; "
+            "the step is likely too large for the thread stiffness and damping "
+            "(use a smaller --dt or the implicit_euler integrator)", state.time)
+    vmax = float(np.linalg.norm(state.velocity, axis=1).max())
+    if vmax > limit:
+        raise DivergenceError(
+            f"diverged at t = {state.time:.6g} s: a node moves at {vmax:.3g} m/s "
+            f"(limit {limit:.3g} m/s) with step {dt:.3g} s; the step is likely too large "
+            "for the thread stiffness and damping", state.time)
+
+
+def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
+        progress: Progress | None = None, force: bool = False) -> RunResult:
+    """Simulate ``scenario``; record to ``out`` (HDF5) if given.
+
+    An existing ``out`` is an error unless ``force``. On Ctrl-C the recording is closed with
+    status ``interrupted`` and KeyboardInterrupt is re-raised; on divergence with status
+    ``diverged`` and :class:`DivergenceError` is re-raised. Every frame so far is kept."""
+    if out is not None and Path(out).exists() and not force:
+        raise ScenarioError(f"{out}: exists; pass --force (force=True) to overwrite it")
+    model = build_model(scenario)
+    state = initial_state(scenario, model)
+    engine = make_engine(scenario, model)
+    times = frame_times(scenario.scene.duration, scenario.simulation.record_rate)
+    recorder = None
+    if out is not None:
+        recorder = Recorder(out, model, {
+            "scenario": to_toml(scenario),
+            "engine": engine.name,
+            "integrator": engine.integrator,
+            "dt": engine.dt,
+            "record_rate": scenario.simulation.record_rate,
+            "bending": False,
+            "bulletnet_version": _version(),
+        })
+        recorder.append(state.time, state.position, state.velocity, engine.tension(state))
+    limit = speed_limit(scenario, state)
+    status, message, error = "running", "", None
+    start = _time.perf_counter()
+    try:
+        for t in times[1:]:
+            engine.advance(state, float(t))
+            _check(state, limit, engine.dt)
+            if recorder is not None:
+                recorder.append(state.time, state.position, state.velocity,
+                                engine.tension(state))
+            if progress is not None:
+                progress(state.time, scenario.scene.duration, _time.perf_counter() - start)
+        status = "completed"
+    except KeyboardInterrupt as exc:
+        status, message, error = "interrupted", "interrupted by the user", exc
+    except DivergenceError as exc:
+        status, message, error = "diverged", str(exc), exc
+    finally:
+        wall = _time.perf_counter() - start
+        if status == "running":  # an unexpected error: keep the frames, say so
+            status, message = "interrupted", "stopped by an internal error"
+        stats = engine.stats()
+        engine.close()
+        path = None
+        frames = 0
+        if recorder is not None:
+            frames = recorder.frames
+            path = recorder.close(status, message, wall_time_s=wall,
+                                  **{f"stats_{k}": v for k, v in stats.items()})
+    if error is not None:
+        raise error
+    return RunResult(path=path, status=status, state=state, wall_time_s=wall, stats=stats,
+                     frames=frames)
+
+
+def _version() -> str:
+    from . import __version__
+
+    return __version__
