@@ -14,7 +14,6 @@ and angular damping, sleeping disabled, and a sphere's inertia 2 m r^2 / 5.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import os
 import sys
 
@@ -118,15 +117,17 @@ class BulletEngine(Engine):
 
 @contextlib.contextmanager
 def _quiet_stdout():
-    """Silence file descriptor 1 (C-level prints) for the duration of the block."""
+    """Silence file descriptors 1 and 2 (C-level prints) for the duration of the block."""
     sys.stdout.flush()
-    saved = os.dup(1)
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
     devnull = os.open(os.devnull, os.O_WRONLY)
     os.dup2(devnull, 1)
+    os.dup2(devnull, 2)
     try:
         yield
     finally:
-        ctypes.CDLL(None).fflush(None)  # drain C stdio buffers into /dev/null first
-        os.dup2(saved, 1)
-        os.close(saved)
-        os.close(devnull)
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in (*saved, devnull):
+            os.close(fd)
