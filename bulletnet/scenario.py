@@ -47,7 +47,7 @@ class Net:
     """Ns, nodes on a side of the square net [-] (Eq. 1)."""
     mesh_length: float = _f(0.5, "m", ">0")
     """Rest length of an inner thread [m] (l_mesh, Table 1)."""
-    corner_thread_length: float = _f(0.7071, "m", ">0")
+    corner_thread_length: float = _f(0.70710678, "m", ">0")
     """Rest length of a corner thread [m] (l_CT, Table 1)."""
     corner_mass: float = _f(0.5, "kg", ">0")
     """Mass of each corner mass, without its half corner thread [kg] (m_CM, Table 1)."""

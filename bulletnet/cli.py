@@ -1,0 +1,264 @@
+"""The ``bulletnet`` command line: run, params, compare, metrics.
+
+Errors are one line on stderr: exit code 2 for bad input, 3 for a diverged run, 130 for an
+interrupted one."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import signal
+import sys
+import time
+
+from .errors import BulletnetError
+
+SI_HELP = "all quantities in SI units; see `bulletnet params SCENE`"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit code 2, no usage dump
+        sys.stderr.write(f"bulletnet: error: {message} (see {self.prog} --help)\n")
+        sys.exit(2)
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+    from .scenario import ENGINES, INTEGRATORS
+
+    parser = _Parser(prog="bulletnet", description="Tether-net deployment and capture "
+                     f"simulation ({SI_HELP}).")
+    parser.add_argument("--version", action="version", version=f"bulletnet {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    run = sub.add_parser("run", help="simulate a scene and record it to HDF5")
+    run.add_argument("scene", help="scene name (deployment, capture, ...) or path to a .toml")
+    run.add_argument("--engine", choices=ENGINES, help="fast (compiled), bullet (PyBullet "
+                     "bodies) or reference (scipy DOP853); default: the scene's")
+    run.add_argument("--integrator", choices=INTEGRATORS,
+                     help="time integrator of fast/bullet; default: the scene's")
+    run.add_argument("--dt", type=_positive, metavar="S", help="time step [s]")
+    run.add_argument("--duration", type=_positive, metavar="S", help="simulated time [s]")
+    run.add_argument("--record-rate", type=_positive, metavar="HZ",
+                     help="frames recorded per simulated second [Hz]")
+    run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a scene key, e.g. --set net.nodes_per_side=6 "
+                          "(values in SI units, TOML syntax)")
+    run.add_argument("--out", metavar="FILE", help="recording to write [default: SCENE.h5]")
+    run.add_argument("--force", action="store_true", help="overwrite an existing --out")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    params = sub.add_parser("params", help="print the derived model (Tables 5-7)")
+    params.add_argument("scene")
+    params.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    params.add_argument("--json", action="store_true", help="machine-readable output")
+
+    compare = sub.add_parser("compare", help="RMSE between two recordings (Eq. 14, Table 2)")
+    compare.add_argument("a", metavar="A.h5")
+    compare.add_argument("b", metavar="B.h5")
+    compare.add_argument("--json", action="store_true")
+
+    metrics = sub.add_parser("metrics", help="mouth area, mouth diagonal, net height (Eq. 13)")
+    metrics.add_argument("run", metavar="RUN.h5")
+    metrics.add_argument("--json", action="store_true")
+    metrics.add_argument("--every", type=_positive, default=0.1, metavar="S",
+                         help="table row interval [s] (text output only)")
+    return parser
+
+
+def _scene(args, extra: dict | None = None):
+    from .scenario import load, parse_override
+
+    overrides = dict(parse_override(item) for item in args.set)
+    overrides.update(extra or {})
+    return load(args.scene, overrides)
+
+
+def cmd_run(args) -> int:
+    from pathlib import Path
+
+    from .simulate import run
+
+    flags = {"simulation.engine": args.engine, "simulation.integrator": args.integrator,
+             "simulation.dt": args.dt, "scene.duration": args.duration,
+             "simulation.record_rate": args.record_rate}
+    scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
+    out = Path(args.out or f"{scene.scene.name}.h5")
+    progress = None if args.quiet else _ProgressBar()
+    print(f"bulletnet: {scene.scene.name}: engine {scene.simulation.engine}, "
+          f"{scene.scene.duration:g} s simulated -> {out}", file=sys.stderr)
+    result = run(scene, out, progress=progress, force=args.force)
+    if progress:
+        progress.done()
+    steps = result.stats.get("steps", 0)
+    print(f"{result.status}: {result.frames} frames, {steps} steps, "
+          f"{result.wall_time_s:.2f} s wall, real-time factor "
+          f"{scene.scene.duration / max(result.wall_time_s, 1e-9):.3g} -> {result.path}")
+    return 0
+
+
+class _ProgressBar:
+    """Simulated time, real-time factor and ETA on stderr, at most 4 updates a second."""
+
+    def __init__(self):
+        self.last = 0.0
+        self.tty = sys.stderr.isatty()
+        self.interval = 0.25 if self.tty else 10.0
+
+    def __call__(self, t: float, duration: float, wall: float) -> None:
+        now = time.monotonic()
+        if now - self.last < self.interval and t < duration:
+            return
+        self.last = now
+        frac = t / duration
+        rtf = t / wall if wall > 0 else float("inf")
+        eta = wall * (1 - frac) / frac if frac > 0 else float("nan")
+        bar = "#" * int(30 * frac)
+        line = (f"[{bar:<30}] t = {t:8.3f} / {duration:g} s  real-time x{rtf:8.3g}  "
+                f"ETA {eta:6.1f} s")
+        sys.stderr.write(("\r" + line) if self.tty else (line + "\n"))
+        sys.stderr.flush()
+
+    def done(self) -> None:
+        if self.tty:
+            sys.stderr.write("\n")
+
+
+def cmd_params(args) -> int:
+    from .builder import build_model
+    from .hertz import contact_table
+    from .model import NodeKind
+
+    scene = _scene(args)
+    model = build_model(scene)
+    kinds = {}
+    for kind in NodeKind:
+        nodes = (model.kind == kind).nonzero()[0]
+        if nodes.size:
+            kinds[kind.name.lower()] = {"count": int(nodes.size),
+                                        "mass_kg": float(model.mass[nodes[0]]),
+                                        "radius_m": float(model.radius[nodes[0]])}
+    threads = {}
+    for label, index in (("inner", 0), ("corner", model.thread_count - 1)):
+        threads[label] = {
+            "rest_length_m": float(model.rest_length[index]),
+            "radius_m": float(model.thread_radius[index]),
+            "k_a_N_per_m": float(model.axial_stiffness[index]),
+            "c_a_Ns_per_m": float(model.axial_damping[index]),
+            "k_t_N_per_m": float(model.transverse_stiffness[index]),
+            "c_t_Ns_per_m": float(model.transverse_damping[index]),
+            "k_b_Nm_per_rad": float(model.bending_stiffness[index]),
+            "c_b_Nms_per_rad": float(model.bending_damping[index]),
+        }
+    contact = {f"{a}/{b}": {"k_c_N_per_m": k, "c_c_Ns_per_m": c}
+               for (a, b), (k, c) in contact_table(scene, model).items()}
+    doc = {
+        "scene": scene.scene.name,
+        "nodes_per_side": model.nodes_per_side,
+        "side_length_m": (model.nodes_per_side - 1) * scene.net.mesh_length,
+        "node_count": model.node_count,
+        "thread_count": model.thread_count,
+        "total_mass_kg": float(model.mass.sum()),
+        "nodes": kinds, "threads": threads, "contact": contact,
+    }
+    if args.json:
+        print(json.dumps(doc, indent=2))
+        return 0
+    print(f"scene {doc['scene']}: Ns = {model.nodes_per_side}, side {doc['side_length_m']:g} m, "
+          f"{model.node_count} masses, {model.thread_count} threads, "
+          f"total mass {doc['total_mass_kg']:.6g} kg")
+    print("\nnodes        count    mass [kg]   radius [m]")
+    for name, v in kinds.items():
+        print(f"{name:<12}{v['count']:>6} {v['mass_kg']:>12.6g} {v['radius_m']:>12.6g}")
+    print("\nthreads (Table 7)        inner        corner")
+    rows = [("l_0 [m]", "rest_length_m"), ("r [m]", "radius_m"),
+            ("k_a [N/m]", "k_a_N_per_m"), ("c_a [N s/m]", "c_a_Ns_per_m"),
+            ("k_t [N/m]", "k_t_N_per_m"), ("c_t [N s/m]", "c_t_Ns_per_m"),
+            ("k_b [N m/rad]", "k_b_Nm_per_rad"), ("c_b [N m s/rad]", "c_b_Nms_per_rad")]
+    for label, key in rows:
+        print(f"{label:<18}{threads['inner'][key]:>13.6g} {threads['corner'][key]:>13.6g}")
+    print("\ncontact pair (Tables 5-6)        k_c [1e9 N/m]   c_c [N s/m]")
+    for pair, v in contact.items():
+        print(f"{pair:<33}{v['k_c_N_per_m'] / 1e9:>13.4f} {v['c_c_Ns_per_m']:>13.2f}")
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from .metrics import rmse
+    from .recording import open_recording
+
+    a, b = open_recording(args.a), open_recording(args.b)
+    r = rmse(a, b)
+    keys = ("rmse_pos_max", "rmse_pos_avg", "rmse_vel_max", "rmse_vel_avg", "samples")
+    if args.json:
+        print(json.dumps({k: r[k] for k in keys} | {"units": {
+            "rmse_pos_max": "m", "rmse_pos_avg": "m", "rmse_vel_max": "m/s",
+            "rmse_vel_avg": "m/s"}}, indent=2))
+        return 0
+    print(f"RMSE over {r['samples']} common sample times (Eq. 14)   maximum      average")
+    print(f"position [m]                                  {r['rmse_pos_max']:10.4g}   "
+          f"{r['rmse_pos_avg']:10.4g}")
+    print(f"velocity [m/s]                                {r['rmse_vel_max']:10.4g}   "
+          f"{r['rmse_vel_avg']:10.4g}")
+    for rec in (a, b):
+        if rec.status != "completed":
+            print(f"note: {rec.path} is {rec.status}", file=sys.stderr)
+    return 0
+
+
+def cmd_metrics(args) -> int:
+    from .metrics import summary
+    from .recording import open_recording
+
+    rec = open_recording(args.run)
+    doc = summary(rec)
+    if args.json:
+        print(json.dumps(doc))
+        return 0
+    print(f"{rec.path}: {rec.status}, {rec.time.size} frames")
+    print("   time [s]  mouth area [m^2]  mouth diagonal [m]  net height [m]")
+    next_t = 0.0
+    for k, t in enumerate(doc["time_s"]):
+        if t + 1e-9 >= next_t or k == len(doc["time_s"]) - 1:
+            print(f"{t:11.3f} {doc['mouth_area_m2'][k]:17.5g} {doc['mouth_diagonal_m'][k]:19.5g} "
+                  f"{doc['net_height_m'][k]:15.5g}")
+            next_t = t + args.every
+    return 0
+
+
+def _terminate(signum, frame):
+    raise KeyboardInterrupt
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    handler = {"run": cmd_run, "params": cmd_params, "compare": cmd_compare,
+               "metrics": cmd_metrics}[args.command]
+    signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return handler(args)
+    except BulletnetError as exc:
+        print(f"bulletnet: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except BrokenPipeError:  # e.g. piped into `head`
+        sys.stderr.close()
+        return 0
+    except KeyboardInterrupt:
+        print("\nbulletnet: interrupted; the recording keeps every frame so far "
+              "(status 'interrupted')", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
