@@ -1,0 +1,150 @@
+"""Recordings, the CLI and the API: layout, statuses, errors, metrics."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+import bulletnet as bn
+from bulletnet.scenario import loads, to_toml
+from tests.conftest import small_scene
+
+TINY = ["--set", "net.nodes_per_side=4", "--set", "net.fold_ratio=0.99",
+        "--duration", "0.02", "--record-rate", "500"]
+
+
+def cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "bulletnet.cli", *args], capture_output=True,
+                          text=True, cwd=cwd, timeout=300)
+
+
+def test_cli_run_writes_documented_layout(tmp_path):
+    out = tmp_path / "run.h5"
+    proc = cli("run", "deployment", *TINY, "--out", str(out), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    with h5py.File(out) as f:
+        t = f["time"].shape[0]
+        assert t == 11  # 0.02 s at 500 Hz, both ends
+        n, p = 20, 28
+        shapes = {"nodes/position": (t, n, 3), "nodes/velocity": (t, n, 3), "nodes/mass": (n,),
+                  "nodes/radius": (n,), "nodes/kind": (n,), "threads/pairs": (p, 2),
+                  "threads/rest_length": (p,), "threads/stiffness": (p,),
+                  "threads/damping": (p,), "threads/tension": (t, p), "time": (t,)}
+        for name, shape in shapes.items():
+            assert f[name].shape == shape, name
+            assert "units" in f[name].attrs, name
+        assert f["nodes/position"].attrs["units"] == "m"
+        for key in ("scenario", "engine", "integrator", "dt", "bending", "status",
+                    "wall_time_s", "bulletnet_version", "format_version"):
+            assert key in f.attrs, key
+        assert f.attrs["status"] == "completed"
+        scene = loads(f.attrs["scenario"])
+    assert scene.net.nodes_per_side == 4 and scene.scene.duration == 0.02
+    assert not (tmp_path / "run.h5.part").exists()
+
+
+def test_scenario_toml_round_trip():
+    s = small_scene(**{"launch.elevation": 30.0})
+    assert loads(to_toml(s)) == s
+
+
+def test_interrupted_run_keeps_frames(tmp_path):
+    calls = []
+
+    def stop_after_three(t, duration, wall):
+        calls.append(t)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        bn.run(small_scene(), tmp_path / "r.h5", progress=stop_after_three)
+    rec = bn.open_recording(tmp_path / "r.h5")
+    assert rec.status == "interrupted"
+    assert rec.time.size == 4  # the initial frame and three more
+    np.testing.assert_allclose(rec.time, [0, 0.01, 0.02, 0.03])
+
+
+def test_divergence_is_typed_and_kept(tmp_path):
+    # Reference: explicit Euler on a damper c is unstable for dt > 2 m / c (~1e-5 s here with
+    # several threads per node); at 5e-5 s it must blow up and say so.
+    s = small_scene(**{"simulation.integrator": "symplectic_euler", "simulation.dt": 5e-5,
+                       "net.fold_ratio": 0.9})
+    with pytest.raises(bn.DivergenceError, match="step"):
+        bn.run(s, tmp_path / "d.h5")
+    rec = bn.open_recording(tmp_path / "d.h5")
+    assert rec.status == "diverged" and "diverged at t" in rec.attrs["message"]
+    assert np.isfinite(rec.position).all() and rec.time.size >= 2
+    proc = cli("run", "deployment", "--set", "net.nodes_per_side=6", "--set",
+               "net.fold_ratio=0.9", "--integrator", "symplectic_euler", "--dt", "5e-5",
+               "--out", str(tmp_path / "d2.h5"), "--quiet")
+    assert proc.returncode == 3
+    assert proc.stderr.strip().count("\n") == 1 and "diverged at t" in proc.stderr
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["run", "nosuchscene"], "no such scene"),
+    (["run", "deployment", "--set", "net.colour=3"], "unknown key"),
+    (["run", "deployment", "--set", "net.nodes_per_side=1"], "nodes_per_side"),
+    (["run", "deployment", "--set", "net.mesh_length=-0.5"], "positive"),
+    (["run", "deployment", "--set", "net.mesh_length=nan"], "finite"),
+    (["run", "deployment", "--set", "net.nodes_per_side=2.5"], "integer"),
+    (["run", "deployment", "--dt", "0"], "positive"),
+    (["run", "deployment", "--dt", "0.01", "--record-rate", "1000"], "record_rate"),
+    (["compare", "missing_a.h5", "missing_b.h5"], "no such recording"),
+    (["metrics", "pyproject.toml"], "not a readable HDF5"),
+])
+def test_bad_input_one_line_exit_2(args, needle):
+    import pathlib
+
+    proc = cli(*args, cwd=pathlib.Path(__file__).parent.parent)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert needle in proc.stderr
+
+
+def test_existing_output_needs_force(tmp_path):
+    out = tmp_path / "x.h5"
+    out.write_bytes(b"keep me")
+    proc = cli("run", "deployment", *TINY, "--out", str(out), "--quiet")
+    assert proc.returncode == 2 and "--force" in proc.stderr
+    assert out.read_bytes() == b"keep me"
+
+
+def test_compare_and_metrics_json(tmp_path):
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    for path, integrator in ((a, "implicit_euler"), (b, "symplectic_euler")):
+        assert cli("run", "deployment", *TINY, "--integrator", integrator, "--dt", "2e-6",
+                   "--out", str(path), "--quiet").returncode == 0
+    doc = json.loads(cli("compare", str(a), str(b), "--json").stdout)
+    assert set(doc) >= {"rmse_pos_max", "rmse_pos_avg", "rmse_vel_max", "rmse_vel_avg"}
+    assert 0 < doc["rmse_pos_avg"] <= doc["rmse_pos_max"]
+    m = json.loads(cli("metrics", str(a), "--json").stdout)
+    assert len(m["time_s"]) == len(m["mouth_area_m2"]) == 11
+
+
+def test_metrics_on_the_folded_start(tmp_path):
+    # Reference: geometry of the initial state. The folded net is a flat square of side
+    # (Ns - 1) * fold * l_mesh: mouth area its square, diagonal sqrt(2) times it, height 0.
+    s = small_scene(**{"scene.duration": 0.01})
+    rec = bn.open_recording(bn.run(s, tmp_path / "m.h5").path)
+    side = 5 * 0.25 * 0.5
+    assert bn.metrics.mouth_area(rec)[0] == pytest.approx(side**2, rel=1e-12)
+    assert bn.metrics.mouth_diagonal(rec)[0] == pytest.approx(math.sqrt(2) * side, rel=1e-12)
+    assert bn.metrics.net_height(rec)[0] == 0.0
+
+
+def test_rmse_of_a_rigid_shift(tmp_path):
+    # Reference: Eq. 14 of a copy shifted by d everywhere is exactly |d| for every node.
+    rec = bn.open_recording(bn.run(small_scene(**{"scene.duration": 0.02}),
+                                   tmp_path / "s.h5").path)
+    shifted = bn.Recording(**{**rec.__dict__, "position": rec.position + [0.003, 0.004, 0.0]})
+    r = bn.metrics.rmse(rec, shifted)
+    assert r["rmse_pos_max"] == pytest.approx(0.005, rel=1e-9)
+    assert r["rmse_pos_avg"] == pytest.approx(0.005, rel=1e-9)
+    assert r["rmse_vel_max"] == 0.0
