@@ -113,7 +113,7 @@ class Contact:
 class Simulation:
     engine: str = _f("fast", "-", "choice", ENGINES)
     """Engine: fast (compiled kernels), bullet (PyBullet bodies) or reference (scipy solve_ivp)."""
-    integrator: str = _f("implicit_euler", "-", "choice", INTEGRATORS)
+    integrator: str = _f("symplectic_euler", "-", "choice", INTEGRATORS)
     """Time integrator of the fast and bullet engines."""
     dt: float = _f(0.0, "s", ">=0")
     """Time step [s]; 0 picks the engine's and integrator's default."""

@@ -1,0 +1,100 @@
+"""Deployment benchmark (issue: engines against the reference, Table 2).
+
+Runs the paper's 3 s deployment (Ns = 11) on every engine at its default settings and
+compares each against the converged reference, then writes ``OUT/deployment.json``.
+
+- The reference for the full 3 s is a converged fine-step run (symplectic Euler at
+  2.5e-7 s, cached in OUT/fine.h5). scipy's DOP853 (the `reference` engine) is run over the
+  first REF_HORIZON seconds and compared with it first, to show the stand-in is faithful.
+- ``fast`` is timed REPEATS times (median reported); ``bullet`` (about 1 ms per step from
+  Python) runs over BULLET_HORIZON seconds and its wall time is scaled to 3 s.
+
+Usage: python benchmarks/deployment.py [OUT] [--repeats N] [--bullet-horizon S] [--ref-horizon S]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import statistics
+import time
+from pathlib import Path
+
+import bulletnet as bn
+
+
+def timed_run(scene, path):
+    start = time.perf_counter()
+    result = bn.run(scene, path, force=True)
+    return time.perf_counter() - start, result
+
+
+def errors(path, ref):
+    r = bn.metrics.rmse(bn.open_recording(path), ref)
+    return {k: r[k] for k in ("rmse_pos_max", "rmse_pos_avg", "rmse_vel_max", "rmse_vel_avg",
+                              "samples")}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("out", nargs="?", default="benchmarks/out")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--bullet-horizon", type=float, default=0.5)
+    parser.add_argument("--ref-horizon", type=float, default=0.5)
+    args = parser.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    base = bn.load_scenario("deployment")
+    duration = base.scene.duration
+    doc = {"scene": "deployment", "duration_s": duration, "machine": platform.processor()
+           or platform.machine(), "bulletnet_version": bn.__version__, "runs": {}}
+
+    fine_path = out / "fine.h5"
+    fine_scene = base.with_overrides({"simulation.integrator": "symplectic_euler",
+                                      "simulation.dt": 2.5e-7})
+    if not fine_path.exists():
+        wall, _ = timed_run(fine_scene, fine_path)
+        doc["fine_wall_s"] = wall
+    fine = bn.open_recording(fine_path)
+
+    # 1. the adaptive reference against the fine-step stand-in
+    wall, _ = timed_run(base.with_overrides({"simulation.engine": "reference",
+                                             "scene.duration": args.ref_horizon}),
+                        out / "reference.h5")
+    doc["reference_vs_fine"] = {"horizon_s": args.ref_horizon, "wall_s": wall,
+                                **errors(out / "reference.h5", fine)}
+
+    # 2. fast at its defaults, timed REPEATS times; and the alternatives for scale
+    walls = []
+    for _ in range(args.repeats):
+        wall, result = timed_run(base, out / "fast.h5")
+        walls.append(wall)
+    doc["runs"]["fast"] = {"integrator": base.simulation.integrator, "dt_s": 1e-6,
+                           "wall_s_median": statistics.median(walls), "wall_s_all": walls,
+                           "steps": result.stats["steps"], **errors(out / "fast.h5", fine)}
+    for integrator, dt in (("symplectic_euler", 2e-6), ("implicit_euler", 1e-5)):
+        name = f"fast_{integrator}_{dt:g}"
+        wall, result = timed_run(base.with_overrides({"simulation.integrator": integrator,
+                                                      "simulation.dt": dt}), out / f"{name}.h5")
+        doc["runs"][name] = {"integrator": integrator, "dt_s": dt, "wall_s_median": wall,
+                             "steps": result.stats["steps"], **errors(out / f"{name}.h5", fine)}
+
+    # 3. bullet at its defaults over a shorter horizon
+    wall, result = timed_run(base.with_overrides({"simulation.engine": "bullet",
+                                                  "scene.duration": args.bullet_horizon}),
+                             out / "bullet.h5")
+    doc["runs"]["bullet"] = {"integrator": base.simulation.integrator, "dt_s": 1e-6,
+                             "horizon_s": args.bullet_horizon, "wall_s": wall,
+                             "wall_s_scaled_to_duration": wall * duration / args.bullet_horizon,
+                             "steps": result.stats["steps"], **errors(out / "bullet.h5", fine),
+                             "vs_fast_same_horizon": errors(out / "bullet.h5",
+                                                            bn.open_recording(out / "fast.h5"))}
+    doc["vortex_paper"] = {"wall_s_dt_5e-5": 2658.0, "wall_s_dt_1_60": 9.0,
+                           "table2_rmse_pos_max": 0.006835, "table2_rmse_pos_avg": 0.002939}
+    (out / "deployment.json").write_text(json.dumps(doc, indent=2))
+    print(json.dumps(doc, indent=2))
+
+
+if __name__ == "__main__":
+    main()
