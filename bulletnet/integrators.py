@@ -49,7 +49,7 @@ class Workspace:
         """CG iterations summed over all implicit steps [-]."""
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _apply_blocks(x, pairs, along, across, axis, mass, out):
     """out = M x + sum_p B_p-Laplacian x, the implicit-Euler system matrix applied to x."""
     for i in range(x.shape[0]):
@@ -74,7 +74,7 @@ def _apply_blocks(x, pairs, along, across, axis, mass, out):
         out[j, 2] -= w2
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _block_jacobi(pairs, along, across, axis, mass, inv):
     """Invert each node's 3x3 diagonal block of the implicit system into ``inv``."""
     n = mass.shape[0]
@@ -107,7 +107,7 @@ def _block_jacobi(pairs, along, across, axis, mass, inv):
         m[2, 0], m[2, 1], m[2, 2] = c02 / det, c12 / det, c22 / det
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _dot(a, b):
     s = 0.0
     for i in range(a.shape[0]):
@@ -115,14 +115,14 @@ def _dot(a, b):
     return s
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _precondition(inv, r, z):
     for i in range(r.shape[0]):
         for a in range(3):
             z[i, a] = inv[i, a, 0] * r[i, 0] + inv[i, a, 1] * r[i, 1] + inv[i, a, 2] * r[i, 2]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def implicit_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt, tol,
                        force, tension, along, across, axis, dv, cg, block_inv, iterations):
     """Velocity increment dv [m/s] of one linearly implicit Euler step (see module doc).
@@ -198,7 +198,7 @@ def implicit_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt,
             dv[i, a] += momentum[a] / total_mass
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def symplectic_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt,
                          force, tension, dv):
     """Velocity increment dv = dt F / m [m/s] of one symplectic Euler step."""
@@ -212,7 +212,7 @@ def symplectic_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, d
             dv[i, a] = dt * force[i, a] / mass[i]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def advance(method, steps, pos, vel, mass, pairs, rest, k, c, gravity, external, dt, tol,
             force, tension, along, across, axis, dv, cg, block_inv, iterations):
     """Take ``steps`` steps of ``method`` in place on (pos, vel); stop early on a non-finite

@@ -11,7 +11,7 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def thread_tension(p, pos, vel, pairs, rest, k, c):
     """Tension T [N] of thread p and its unit direction e (i -> j) and length l [m].
 
@@ -24,7 +24,8 @@ def thread_tension(p, pos, vel, pairs, rest, k, c):
     length = np.sqrt(dx * dx + dy * dy + dz * dz)
     if length <= rest[p]:
         return 0.0, 0.0, 0.0, 0.0, length
-    ex, ey, ez = dx / length, dy / length, dz / length
+    inv = 1.0 / length
+    ex, ey, ez = dx * inv, dy * inv, dz * inv
     vr = ((vel[j, 0] - vel[i, 0]) * ex + (vel[j, 1] - vel[i, 1]) * ey
           + (vel[j, 2] - vel[i, 2]) * ez)
     tension = k[p] * (length - rest[p]) + c[p] * vr
@@ -33,7 +34,7 @@ def thread_tension(p, pos, vel, pairs, rest, k, c):
     return tension, ex, ey, ez, length
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def axial_forces(pos, vel, pairs, rest, k, c, force, tension):
     """Add every thread's force [N] into ``force`` (N, 3); write tensions [N] into ``tension`` (P,)."""
     for p in range(pairs.shape[0]):
@@ -49,7 +50,7 @@ def axial_forces(pos, vel, pairs, rest, k, c, force, tension):
             force[j, 2] -= t * ez
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def axial_linearization(pos, vel, pairs, rest, k, c, dt, force, tension, along, across, axis):
     """Thread forces as :func:`axial_forces`, plus each taut thread's implicit-Euler block.
 
