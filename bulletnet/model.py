@@ -50,6 +50,14 @@ class NetModel:
     """k_b = E I / l_0 [N m/rad], shape (P,) (Eq. 4)."""
     bending_damping: np.ndarray
     """c_b = 2 xi_b k_b / omega_b [N m s/rad], shape (P,)."""
+    inertia: np.ndarray
+    """Node moments of inertia, solid spheres 2 m r^2 / 5 [kg m^2], shape (N,)."""
+    rest_axis: np.ndarray
+    """Thread rest direction in node i's body frame (nodes start unrotated) [-], shape (P, 3)."""
+    fixed: np.ndarray
+    """Clamped nodes: position and orientation held [-], shape (N,), bool."""
+    load: np.ndarray
+    """Constant external force on each node (e.g. a tip load) [N], shape (N, 3)."""
 
     def __post_init__(self):
         for name in self.__dataclass_fields__:

@@ -29,10 +29,15 @@ def _f(default, unit: str, check: str = "", choices: tuple = ()):
     return field(default=default, metadata={"unit": unit, "check": check, "choices": choices})
 
 
+SCENE_KINDS = ("net", "cantilever")
+
+
 @dataclass(frozen=True)
 class Scene:
     name: str = _f("unnamed", "-")
     """Short name of the scene [-]."""
+    kind: str = _f("net", "-", "choice", SCENE_KINDS)
+    """What is built: a square net ([net]) or a clamped two-node beam ([beam], Fig. 2)."""
     description: str = _f("", "-")
     """One-line description [-]."""
     duration: float = _f(3.0, "s", ">0")
@@ -59,6 +64,22 @@ class Net:
     """Initial distance between adjacent nodes over their rest length [-] (Sec. 4: 1/4)."""
     center: tuple = _f((0.0, 0.0, 0.0), "m", "vec3")
     """Initial position of the net's centre [m], shape (3,)."""
+
+
+@dataclass(frozen=True)
+class Beam:
+    length: float = _f(0.5, "m", ">0")
+    """Beam length L [m]; root clamped at the origin, beam along +x (Fig. 2)."""
+    radius: float = _f(0.01, "m", ">0")
+    """Radius of the beam's circular section [m]."""
+    tip_load: tuple = _f((0.0, 0.0, -262.0), "N", "vec3")
+    """Constant force on the tip node [N], shape (3,)."""
+
+
+@dataclass(frozen=True)
+class Bending:
+    enabled: bool = _f(False, "-")
+    """Oriented nodes with the angular (k_b) and transverse (k_t) springs of Sec. 3.2."""
 
 
 @dataclass(frozen=True)
@@ -129,6 +150,8 @@ class Simulation:
 class Scenario:
     scene: Scene = field(default_factory=Scene)
     net: Net = field(default_factory=Net)
+    beam: Beam = field(default_factory=Beam)
+    bending: Bending = field(default_factory=Bending)
     materials: Materials = field(default_factory=Materials)
     damping: Damping = field(default_factory=Damping)
     launch: Launch = field(default_factory=Launch)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -15,6 +15,19 @@ class NetState:
     """Node positions [m], shape (N, 3), float64, C-contiguous."""
     velocity: np.ndarray
     """Node velocities [m/s], shape (N, 3), float64, C-contiguous."""
+    orientation: np.ndarray | None = field(default=None)
+    """Node orientations, unit quaternions (x, y, z, w) [-], shape (N, 4); only with bending."""
+    angular_velocity: np.ndarray | None = field(default=None)
+    """Node angular velocities, world frame [rad/s], shape (N, 3); only with bending."""
+
+    @property
+    def oriented(self) -> bool:
+        """Whether the nodes carry orientations (bending on)."""
+        return self.orientation is not None
 
     def copy(self) -> NetState:
-        return NetState(self.time, self.position.copy(), self.velocity.copy())
+        def dup(a):
+            return None if a is None else a.copy()
+
+        return NetState(self.time, self.position.copy(), self.velocity.copy(),
+                        dup(self.orientation), dup(self.angular_velocity))

@@ -1,0 +1,125 @@
+"""Bending stiffness (Sec. 3.2, Eq. 4-5): the relaxed prismatic joint of every thread.
+
+Nodes carry an orientation q (unit quaternion x, y, z, w) and an angular velocity w [rad/s].
+For thread p from node i to node j, with r = x_j - x_i and the joint axis a = R(q_i) a0 fixed
+in node i's frame (a0: the thread's rest direction, in i's body frame):
+
+- transverse spring and damper: the offset of node j from the axis, d = r - (a . r) a, and its
+  rate seen from node i's frame, P u with u = (v_j - v_i) - w_i x r and P = I - a a^T, give
+  the shear force f = k_t d + c_t P u on i and -f on j, and the torque r x f on i (the axis
+  turns with i). f derives from E_t = k_t |d|^2 / 2 and D_t = c_t |P u|^2 / 2.
+- angular spring and damper: the relative rotation phi = log(q_j q_i^*) (rotation vector, world
+  frame; the rest relative rotation is the identity) and the relative angular velocity give the
+  torque k_b phi + c_b (w_j - w_i) on i and its opposite on j. E_b = k_b |phi|^2 / 2.
+
+Forces and moments balance per thread; a straight, unrotated net feels nothing.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def rotate(q, vx, vy, vz):
+    """Rotate the vector v by the unit quaternion q = (x, y, z, w)."""
+    qx, qy, qz, qw = q[0], q[1], q[2], q[3]
+    tx = 2.0 * (qy * vz - qz * vy)
+    ty = 2.0 * (qz * vx - qx * vz)
+    tz = 2.0 * (qx * vy - qy * vx)
+    return (vx + qw * tx + qy * tz - qz * ty,
+            vy + qw * ty + qz * tx - qx * tz,
+            vz + qw * tz + qx * ty - qy * tx)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def relative_rotation_vector(qi, qj):
+    """Rotation vector [rad] of q_j q_i^* (world frame), the shortest of the two."""
+    # q_j * conj(q_i)
+    x = -qj[3] * qi[0] + qj[0] * qi[3] - qj[1] * qi[2] + qj[2] * qi[1]
+    y = -qj[3] * qi[1] + qj[1] * qi[3] - qj[2] * qi[0] + qj[0] * qi[2]
+    z = -qj[3] * qi[2] + qj[2] * qi[3] - qj[0] * qi[1] + qj[1] * qi[0]
+    w = qj[3] * qi[3] + qj[0] * qi[0] + qj[1] * qi[1] + qj[2] * qi[2]
+    if w < 0.0:
+        x, y, z, w = -x, -y, -z, -w
+    s = np.sqrt(x * x + y * y + z * z)
+    if s < 1e-12:
+        return 2.0 * x, 2.0 * y, 2.0 * z
+    angle = 2.0 * np.arctan2(s, w)
+    return angle * x / s, angle * y / s, angle * z / s
+
+
+@nb.njit(cache=True, error_model="numpy")
+def bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b,
+                   force, torque, shear):
+    """Add every thread's bending forces [N] and torques [N m] into ``force`` and ``torque``
+    (N, 3); write the shear force magnitude |f| [N] of each thread into ``shear`` (P,)."""
+    for p in range(pairs.shape[0]):
+        i, j = pairs[p, 0], pairs[p, 1]
+        rx = pos[j, 0] - pos[i, 0]
+        ry = pos[j, 1] - pos[i, 1]
+        rz = pos[j, 2] - pos[i, 2]
+        ax, ay, az = rotate(quat[i], rest_axis[p, 0], rest_axis[p, 1], rest_axis[p, 2])
+        s = ax * rx + ay * ry + az * rz
+        dx, dy, dz = rx - s * ax, ry - s * ay, rz - s * az
+        wx, wy, wz = omega[i, 0], omega[i, 1], omega[i, 2]
+        ux = vel[j, 0] - vel[i, 0] - (wy * rz - wz * ry)
+        uy = vel[j, 1] - vel[i, 1] - (wz * rx - wx * rz)
+        uz = vel[j, 2] - vel[i, 2] - (wx * ry - wy * rx)
+        au = ax * ux + ay * uy + az * uz
+        fx = k_t[p] * dx + c_t[p] * (ux - au * ax)
+        fy = k_t[p] * dy + c_t[p] * (uy - au * ay)
+        fz = k_t[p] * dz + c_t[p] * (uz - au * az)
+        shear[p] = np.sqrt(fx * fx + fy * fy + fz * fz)
+        force[i, 0] += fx
+        force[i, 1] += fy
+        force[i, 2] += fz
+        force[j, 0] -= fx
+        force[j, 1] -= fy
+        force[j, 2] -= fz
+        torque[i, 0] += ry * fz - rz * fy
+        torque[i, 1] += rz * fx - rx * fz
+        torque[i, 2] += rx * fy - ry * fx
+        px, py, pz = relative_rotation_vector(quat[i], quat[j])
+        tx = k_b[p] * px + c_b[p] * (omega[j, 0] - omega[i, 0])
+        ty = k_b[p] * py + c_b[p] * (omega[j, 1] - omega[i, 1])
+        tz = k_b[p] * pz + c_b[p] * (omega[j, 2] - omega[i, 2])
+        torque[i, 0] += tx
+        torque[i, 1] += ty
+        torque[i, 2] += tz
+        torque[j, 0] -= tx
+        torque[j, 1] -= ty
+        torque[j, 2] -= tz
+
+
+def bending_energy(pos, quat, pairs, rest_axis, k_t, k_b) -> float:
+    """Elastic bending energy [J]: sum of k_t |d|^2 / 2 + k_b |phi|^2 / 2 over threads."""
+    energy = 0.0
+    for p in range(pairs.shape[0]):
+        i, j = pairs[p]
+        r = pos[j] - pos[i]
+        a = np.array(rotate(quat[i], *rest_axis[p]))
+        d = r - (a @ r) * a
+        phi = np.array(relative_rotation_vector(quat[i], quat[j]))
+        energy += 0.5 * k_t[p] * (d @ d) + 0.5 * k_b[p] * (phi @ phi)
+    return float(energy)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def integrate_rotation(quat, omega, dt):
+    """q <- exp(dt w / 2) q for every node: the exact rotation by w dt [rad], renormalized."""
+    for i in range(quat.shape[0]):
+        wx, wy, wz = omega[i, 0] * dt, omega[i, 1] * dt, omega[i, 2] * dt
+        angle = np.sqrt(wx * wx + wy * wy + wz * wz)
+        if angle < 1e-300:
+            continue
+        s = np.sin(0.5 * angle) / angle
+        dx, dy, dz, dw = wx * s, wy * s, wz * s, np.cos(0.5 * angle)
+        qx, qy, qz, qw = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+        nx = dw * qx + dx * qw + dy * qz - dz * qy
+        ny = dw * qy + dy * qw + dz * qx - dx * qz
+        nz = dw * qz + dz * qw + dx * qy - dy * qx
+        nw = dw * qw - dx * qx - dy * qy - dz * qz
+        norm = np.sqrt(nx * nx + ny * ny + nz * nz + nw * nw)
+        quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = nx / norm, ny / norm, nz / norm, nw / norm
