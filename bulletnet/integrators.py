@@ -1,16 +1,20 @@
 """Time integrators of the net, compiled with numba.
 
 Each integrator computes the velocity increment dv [m/s] of one step from the state; the step
-is then v <- v + dv, x <- x + dt v. The fast engine does both in compiled loops; the bullet
-engine hands m dv / dt to PyBullet as an external force and lets PyBullet take the step (its
-integrator is the same semi-implicit update), so both engines run the same method.
+is then v <- v + dv, x <- x + dt v (and, with bending, w <- w + dt tau / J, q <- exp(dt w / 2) q).
+The fast engine does this in compiled loops; the bullet engine hands m dv / dt and tau to
+PyBullet as external force and torque and lets PyBullet take the step (its integrator is the
+same semi-implicit update), so both engines run the same method.
 
 - ``symplectic_euler``: dv = dt F(x, v) / m. Explicit, first order; stable only while
   dt < ~2 m / c for the thread dampers (a few microseconds for the paper's nets).
-- ``implicit_euler``: linearly implicit (one Newton step of) backward Euler,
-  (M + dt C + dt^2 K) dv = dt F - dt^2 K v, solved by block-Jacobi preconditioned conjugate
-  gradients, then shifted by the uniform velocity that makes the step conserve momentum
-  exactly (the threads' blocks vanish on it). First order, stable on the damped threads.
+- ``implicit_euler``: linearly implicit (one Newton step of) backward Euler on the axial
+  threads, (M + dt C + dt^2 K) dv = dt F - dt^2 K v, solved by block-Jacobi preconditioned
+  conjugate gradients, then shifted by the uniform velocity that makes the step conserve
+  momentum exactly (the threads' blocks vanish on it). Bending forces enter F explicitly.
+  First order, stable on the damped threads.
+
+Clamped nodes (``model.fixed``) never move or turn.
 """
 
 from __future__ import annotations
@@ -19,10 +23,20 @@ import numba as nb
 import numpy as np
 
 from .forces.axial import axial_forces, axial_linearization
+from .forces.bending import bending_forces, integrate_rotation
+from .model import NetModel
 
 SYMPLECTIC_EULER = 0
 IMPLICIT_EULER = 1
 INTEGRATOR_IDS = {"symplectic_euler": SYMPLECTIC_EULER, "implicit_euler": IMPLICIT_EULER}
+
+
+def model_arrays(model: NetModel) -> tuple:
+    """The model's arrays in the order the compiled kernels unpack them."""
+    m = model
+    return (m.mass, m.pairs, m.rest_length, m.axial_stiffness, m.axial_damping,
+            m.transverse_stiffness, m.transverse_damping, m.bending_stiffness,
+            m.bending_damping, m.inertia, m.rest_axis, m.fixed, m.load)
 
 
 class Workspace:
@@ -31,8 +45,12 @@ class Workspace:
     def __init__(self, n: int, p: int):
         self.force = np.zeros((n, 3))
         """Force on each node [N], shape (N, 3)."""
+        self.torque = np.zeros((n, 3))
+        """Torque on each node [N m], shape (N, 3) (bending only)."""
         self.tension = np.zeros(p)
         """Thread tensions [N], shape (P,)."""
+        self.shear = np.zeros(p)
+        """Thread shear force magnitudes [N], shape (P,) (bending only)."""
         self.along = np.zeros(p)
         """Implicit block along each thread [kg], shape (P,)."""
         self.across = np.zeros(p)
@@ -48,10 +66,32 @@ class Workspace:
         self.cg_iterations = np.zeros(1, dtype=np.int64)
         """CG iterations summed over all implicit steps [-]."""
 
+    def arrays(self) -> tuple:
+        """The scratch arrays in the order the compiled kernels unpack them."""
+        return (self.force, self.torque, self.tension, self.shear, self.along, self.across,
+                self.axis, self.dv, self.cg, self.block_inv, self.cg_iterations)
+
 
 @nb.njit(cache=True, error_model="numpy")
-def _apply_blocks(x, pairs, along, across, axis, mass, out):
-    """out = M x + sum_p B_p-Laplacian x, the implicit-Euler system matrix applied to x."""
+def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending):
+    """Gravity, loads, ``external`` [N] (N, 3) and, with bending, the bending forces and
+    torques, into work's force and torque arrays; the threads' shear into work's shear."""
+    (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed,
+     load) = model
+    force, torque, shear = work[0], work[1], work[3]
+    for i in range(pos.shape[0]):
+        for a in range(3):
+            force[i, a] = mass[i] * gravity[a] + load[i, a] + external[i, a]
+    if bending:
+        torque[:] = 0.0
+        bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b, force,
+                       torque, shear)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _apply_blocks(x, pairs, along, across, axis, mass, fixed, out):
+    """out = M x + sum_p B_p-Laplacian x, the implicit-Euler system applied to x (rows of
+    clamped nodes are the identity)."""
     for i in range(x.shape[0]):
         for a in range(3):
             out[i, a] = mass[i] * x[i, a]
@@ -72,6 +112,9 @@ def _apply_blocks(x, pairs, along, across, axis, mass, out):
         out[j, 0] -= w0
         out[j, 1] -= w1
         out[j, 2] -= w2
+    for i in range(x.shape[0]):
+        if fixed[i]:
+            out[i, 0], out[i, 1], out[i, 2] = x[i, 0], x[i, 1], x[i, 2]
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -116,24 +159,27 @@ def _dot(a, b):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _precondition(inv, r, z):
+def _precondition(inv, fixed, r, z):
     for i in range(r.shape[0]):
+        if fixed[i]:
+            z[i, 0], z[i, 1], z[i, 2] = 0.0, 0.0, 0.0
+            continue
         for a in range(3):
             z[i, a] = inv[i, a, 0] * r[i, 0] + inv[i, a, 1] * r[i, 1] + inv[i, a, 2] * r[i, 2]
 
 
 @nb.njit(cache=True, error_model="numpy")
-def implicit_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt, tol,
-                       force, tension, along, across, axis, dv, cg, block_inv, iterations):
-    """Velocity increment dv [m/s] of one linearly implicit Euler step (see module doc).
-
-    ``external`` [N], shape (N, 3), is added to the thread forces and gravity. ``dv`` holds the
-    previous increment on entry (the CG warm start) and the new one on exit."""
+def implicit_increment(pos, vel, model, work, dt, tol):
+    """Velocity increment dv [m/s] of one linearly implicit Euler step (see module doc), into
+    work's dv (which holds the previous increment on entry: the CG warm start). Work's force
+    must hold the non-axial forces on entry (:func:`external_forces`)."""
+    (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed,
+     load) = model
+    (force, torque, tension, shear, along, across, axis, dv, cg, block_inv,
+     iterations) = work
     n = pos.shape[0]
-    for i in range(n):
-        for a in range(3):
-            force[i, a] = mass[i] * gravity[a] + external[i, a]
-    axial_linearization(pos, vel, pairs, rest, k, c, dt, force, tension, along, across, axis)
+    axial_linearization(pos, vel, pairs, rest, k_a, c_a, dt, force, tension, along, across,
+                        axis)
     r, z, d, ad = cg[0], cg[1], cg[2], cg[3]
     # right-hand side dt F - dt^2 K v, in r
     for i in range(n):
@@ -143,7 +189,7 @@ def implicit_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt,
         if along[p] == 0.0:
             continue
         i, j = pairs[p, 0], pairs[p, 1]
-        kt = dt * dt * k[p]
+        kt = dt * dt * k_a[p]
         d0 = vel[i, 0] - vel[j, 0]
         d1 = vel[i, 1] - vel[j, 1]
         d2 = vel[i, 2] - vel[j, 2]
@@ -152,33 +198,39 @@ def implicit_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt,
             w = across[p] * da + s * axis[p, a]
             r[i, a] -= w
             r[j, a] += w
-    rhs_norm = np.sqrt(_dot(r, r))
+    clamped = False
+    for i in range(n):
+        if fixed[i]:
+            clamped = True
+            r[i, 0], r[i, 1], r[i, 2] = 0.0, 0.0, 0.0
+            dv[i, 0], dv[i, 1], dv[i, 2] = 0.0, 0.0, 0.0
     momentum = np.zeros(3)  # the step's exact momentum change: sum of dt F (internal forces cancel)
     for i in range(n):
         for a in range(3):
             momentum[a] += r[i, a]
+    rhs_norm = np.sqrt(_dot(r, r))
     if rhs_norm == 0.0:
         dv[:] = 0.0
         return
     _block_jacobi(pairs, along, across, axis, mass, block_inv)
     # r <- rhs - A dv (warm start)
-    _apply_blocks(dv, pairs, along, across, axis, mass, ad)
+    _apply_blocks(dv, pairs, along, across, axis, mass, fixed, ad)
     for i in range(n):
         for a in range(3):
             r[i, a] -= ad[i, a]
-    _precondition(block_inv, r, z)
+    _precondition(block_inv, fixed, r, z)
     d[:] = z
     rz = _dot(r, z)
     for _ in range(4 * n):
         if np.sqrt(_dot(r, r)) <= tol * rhs_norm:
             break
-        _apply_blocks(d, pairs, along, across, axis, mass, ad)
+        _apply_blocks(d, pairs, along, across, axis, mass, fixed, ad)
         alpha = rz / _dot(d, ad)
         for i in range(n):
             for a in range(3):
                 dv[i, a] += alpha * d[i, a]
                 r[i, a] -= alpha * ad[i, a]
-        _precondition(block_inv, r, z)
+        _precondition(block_inv, fixed, r, z)
         rz_new = _dot(r, z)
         beta = rz_new / rz
         rz = rz_new
@@ -186,6 +238,8 @@ def implicit_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt,
             for a in range(3):
                 d[i, a] = z[i, a] + beta * d[i, a]
         iterations[0] += 1
+    if clamped:  # a clamp takes up momentum: nothing to conserve
+        return
     # The threads' blocks vanish on a uniform velocity, so adding one to dv changes only the
     # momentum residual: choose it so the step conserves momentum exactly, not to CG tolerance.
     total_mass = 0.0
@@ -199,33 +253,40 @@ def implicit_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt,
 
 
 @nb.njit(cache=True, error_model="numpy")
-def symplectic_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt,
-                         force, tension, dv):
-    """Velocity increment dv = dt F / m [m/s] of one symplectic Euler step."""
-    n = pos.shape[0]
-    for i in range(n):
+def symplectic_increment(pos, vel, model, work, dt):
+    """Velocity increment dv = dt F / m [m/s] of one symplectic Euler step, into work's dv.
+    Work's force must hold the non-axial forces on entry (:func:`external_forces`)."""
+    mass, pairs, rest, k_a, c_a, fixed = model[0], model[1], model[2], model[3], model[4], \
+        model[11]
+    force, tension, dv = work[0], work[2], work[7]
+    axial_forces(pos, vel, pairs, rest, k_a, c_a, force, tension)
+    for i in range(pos.shape[0]):
         for a in range(3):
-            force[i, a] = mass[i] * gravity[a] + external[i, a]
-    axial_forces(pos, vel, pairs, rest, k, c, force, tension)
-    for i in range(n):
-        for a in range(3):
-            dv[i, a] = dt * force[i, a] / mass[i]
+            dv[i, a] = 0.0 if fixed[i] else dt * force[i, a] / mass[i]
 
 
 @nb.njit(cache=True, error_model="numpy")
-def advance(method, steps, pos, vel, mass, pairs, rest, k, c, gravity, external, dt, tol,
-            force, tension, along, across, axis, dv, cg, block_inv, iterations):
-    """Take ``steps`` steps of ``method`` in place on (pos, vel); stop early on a non-finite
-    state and return the number of steps taken."""
+def increment(method, bending, pos, vel, quat, omega, model, work, gravity, external, dt,
+              tol):
+    """All forces at the state, then the method's velocity increment into work's dv."""
+    external_forces(pos, vel, quat, omega, model, work, gravity, external, bending)
+    if method == SYMPLECTIC_EULER:
+        symplectic_increment(pos, vel, model, work, dt)
+    else:
+        implicit_increment(pos, vel, model, work, dt, tol)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def advance(method, bending, steps, pos, vel, quat, omega, model, work, gravity, external,
+            dt, tol):
+    """Take ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]); stop early on
+    a non-finite state and return the number of steps taken."""
     n = pos.shape[0]
+    inertia, fixed = model[9], model[11]
+    torque, dv = work[1], work[7]
     for step in range(steps):
-        if method == SYMPLECTIC_EULER:
-            symplectic_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt,
-                                 force, tension, dv)
-        else:
-            implicit_increment(pos, vel, mass, pairs, rest, k, c, gravity, external, dt, tol,
-                               force, tension, along, across, axis, dv, cg, block_inv,
-                               iterations)
+        increment(method, bending, pos, vel, quat, omega, model, work, gravity, external, dt,
+                  tol)
         finite = True
         for i in range(n):
             for a in range(3):
@@ -234,6 +295,12 @@ def advance(method, steps, pos, vel, mass, pairs, rest, k, c, gravity, external,
             if not (np.isfinite(pos[i, 0]) and np.isfinite(pos[i, 1])
                     and np.isfinite(pos[i, 2])):
                 finite = False
+        if bending:
+            for i in range(n):
+                if not fixed[i]:
+                    for a in range(3):
+                        omega[i, a] += dt * torque[i, a] / inertia[i]
+            integrate_rotation(quat, omega, dt)
         if not finite:
             return step + 1
     return steps

@@ -16,6 +16,9 @@ path                      shape         meaning
 /threads/stiffness        (P,)          k_a [N/m]
 /threads/damping          (P,)          c_a [N s/m]
 /threads/tension          (T, P)        axial tension, 0 when slack [N]
+/threads/shear            (T, P)        transverse (shear) force magnitude, 0 without bending [N]
+/nodes/orientation        (T, N, 4)     unit quaternions x, y, z, w [-] (bending only)
+/nodes/angular_velocity   (T, N, 3)     world frame [rad/s] (bending only)
 ========================  ============  =====================================================
 
 Root attributes: ``scenario`` (the TOML as run, overrides applied), ``engine``,
@@ -39,6 +42,7 @@ import numpy as np
 
 from .errors import RecordingError
 from .model import NetModel
+from .state import NetState
 
 FORMAT_VERSION = 1
 FLUSH_INTERVAL_S = 1.0
@@ -51,7 +55,7 @@ class Recorder:
     """Append frames of a run to an HDF5 file; use as a context manager or call :meth:`close`."""
 
     def __init__(self, path: str | os.PathLike, model: NetModel, attrs: dict,
-                 flush_interval: float = FLUSH_INTERVAL_S):
+                 oriented: bool = False, flush_interval: float = FLUSH_INTERVAL_S):
         import h5py
 
         self.path = Path(path)
@@ -92,19 +96,24 @@ class Recorder:
             "position": growing("nodes/position", (n, 3), "m"),
             "velocity": growing("nodes/velocity", (n, 3), "m/s"),
             "tension": growing("threads/tension", (p,), "N"),
+            "shear": growing("threads/shear", (p,), "N"),
         }
+        if oriented:
+            self._series["orientation"] = growing("nodes/orientation", (n, 4), "1")
+            self._series["angular_velocity"] = growing("nodes/angular_velocity", (n, 3),
+                                                       "rad/s")
         f.swmr_mode = True
         self._last_flush = _time.monotonic()
 
-    def append(self, time: float, position: np.ndarray, velocity: np.ndarray,
-               tension: np.ndarray) -> None:
-        """Add one frame: time [s], positions (N, 3) [m], velocities (N, 3) [m/s], tensions (P,) [N]."""
+    def append(self, state: NetState, tension: np.ndarray, shear: np.ndarray) -> None:
+        """Add one frame: the state, and thread tensions and shear forces (P,) [N]."""
         k = self.frames
-        for name, value in (("time", time), ("position", position), ("velocity", velocity),
-                            ("tension", tension)):
-            ds = self._series[name]
+        values = {"time": state.time, "position": state.position, "velocity": state.velocity,
+                  "tension": tension, "shear": shear,
+                  "orientation": state.orientation, "angular_velocity": state.angular_velocity}
+        for name, ds in self._series.items():
             ds.resize(k + 1, axis=0)
-            ds[k] = value
+            ds[k] = values[name]
         self.frames += 1
         if _time.monotonic() - self._last_flush >= self.flush_interval:
             self.flush()

@@ -26,6 +26,10 @@ class Recording:
     """Node velocities [m/s], shape (T, N, 3)."""
     tension: np.ndarray
     """Thread tensions [N], shape (T, P)."""
+    shear: np.ndarray
+    """Thread shear force magnitudes [N], shape (T, P)."""
+    orientation: np.ndarray | None
+    """Node orientations, quaternions x, y, z, w [-], shape (T, N, 4); None without bending."""
     mass: np.ndarray
     """Node masses [kg], shape (N,)."""
     radius: np.ndarray
@@ -84,6 +88,9 @@ def open_recording(path: str | os.PathLike) -> Recording:
                 position=f["nodes/position"][:frames],
                 velocity=f["nodes/velocity"][:frames],
                 tension=f["threads/tension"][:frames],
+                shear=f["threads/shear"][:frames],
+                orientation=(f["nodes/orientation"][:frames] if "nodes/orientation" in f
+                             else None),
                 mass=f["nodes/mass"][()],
                 radius=f["nodes/radius"][()],
                 kind=f["nodes/kind"][()],

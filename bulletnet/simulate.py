@@ -90,10 +90,10 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             "integrator": engine.integrator,
             "dt": engine.dt,
             "record_rate": scenario.simulation.record_rate,
-            "bending": False,
+            "bending": scenario.bending.enabled,
             "bulletnet_version": _version(),
-        })
-        recorder.append(state.time, state.position, state.velocity, engine.tension(state))
+        }, oriented=state.oriented)
+        recorder.append(state, *engine.thread_loads(state))
     limit = speed_limit(scenario, state)
     status, message, error = "running", "", None
     start = _time.perf_counter()
@@ -102,8 +102,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             engine.advance(state, float(t))
             _check(state, limit, engine.dt)
             if recorder is not None:
-                recorder.append(state.time, state.position, state.velocity,
-                                engine.tension(state))
+                recorder.append(state, *engine.thread_loads(state))
             if progress is not None:
                 progress(state.time, scenario.scene.duration, _time.perf_counter() - start)
         status = "completed"

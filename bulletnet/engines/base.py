@@ -7,7 +7,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from ..forces.axial import axial_forces
+from .. import integrators
 from ..model import NetModel
 from ..scenario import Scenario
 from ..state import NetState
@@ -25,8 +25,16 @@ class Engine(ABC):
     def __init__(self, scenario: Scenario, model: NetModel):
         self.scenario = scenario
         self.model = model
+        self.arrays = integrators.model_arrays(model)
+        self.work = integrators.Workspace(model.node_count, model.thread_count)
+        self.bending = scenario.bending.enabled
+        """Whether nodes carry orientations and the bending springs act."""
         self.gravity = np.asarray(scenario.scene.gravity, dtype=float)
         """Gravitational acceleration [m/s^2], shape (3,)."""
+        self.external = np.zeros((model.node_count, 3))
+        """External forces besides gravity and the model's loads [N], shape (N, 3)."""
+        self.cg_tolerance = 1e-8
+        """Relative residual at which the implicit solve stops [-]."""
         self.steps = 0
         """Steps taken so far [-]."""
 
@@ -43,21 +51,29 @@ class Engine(ABC):
         """Whole number of steps covering ``interval`` [s] with steps no longer than :attr:`dt`."""
         return max(1, math.ceil(interval / self.dt - 1e-9))
 
+    def rotations(self, state: NetState) -> tuple[np.ndarray, np.ndarray]:
+        """(orientation (N, 4), angular velocity (N, 3)) for the kernels; empty without bending."""
+        if self.bending:
+            return state.orientation, state.angular_velocity
+        return np.zeros((0, 4)), np.zeros((0, 3))
+
     @abstractmethod
     def advance(self, state: NetState, t_end: float) -> None:
         """Integrate ``state`` in place from ``state.time`` to ``t_end`` [s]."""
 
-    def tension(self, state: NetState) -> np.ndarray:
-        """Axial tension of every thread at ``state`` [N], shape (P,) (Eq. 3)."""
-        m = self.model
-        tension = np.zeros(m.thread_count)
-        axial_forces(state.position, state.velocity, m.pairs, m.rest_length,
-                     m.axial_stiffness, m.axial_damping, np.zeros_like(state.position), tension)
-        return tension
+    def thread_loads(self, state: NetState) -> tuple[np.ndarray, np.ndarray]:
+        """Axial tension (Eq. 3) and shear force magnitude of every thread at ``state`` [N],
+        each shape (P,); the shear is zero without bending."""
+        work = integrators.Workspace(self.model.node_count, self.model.thread_count)
+        quat, omega = self.rotations(state)
+        integrators.increment(integrators.SYMPLECTIC_EULER, self.bending, state.position,
+                              state.velocity, quat, omega, self.arrays, work.arrays(),
+                              self.gravity, self.external, 1.0, 0.0)
+        return work.tension, work.shear
 
     def stats(self) -> dict:
         """Counters of the run so far (steps, solver iterations)."""
-        return {"steps": self.steps}
+        return {"steps": self.steps, "cg_iterations": int(self.work.cg_iterations[0])}
 
     def close(self) -> None:
         """Release engine resources (the PyBullet world)."""

@@ -1,10 +1,10 @@
 """The bullet engine: every node a small PyBullet sphere body; thread forces computed by the
 shared kernels and applied as external forces every step; PyBullet integrates.
 
-PyBullet's rigid-body update is semi-implicit Euler (v += dt F / m, then x += dt v), so with
-the ``symplectic_euler`` integrator the forces applied are the threads' forces, and with
-``implicit_euler`` they are m dv / dt for the implicit increment dv: PyBullet then takes
-exactly the implicit step. Threads are forces, not PyBullet constraints: a point-to-point
+PyBullet's rigid-body update is semi-implicit Euler (v += dt F / m, then x += dt v; likewise
+for the angular velocity and the orientation), so the engine applies m dv / dt for the
+integrator's velocity increment dv (for ``symplectic_euler`` that is the net force itself) and
+the bending torques: PyBullet then takes exactly the integrator's step. Threads are forces, not PyBullet constraints: a point-to-point
 constraint is bilateral and cannot go slack.
 
 Bodies are created without collision shapes when the scene has no contact, with zero linear
@@ -36,14 +36,10 @@ class BulletEngine(Engine):
             self.pb = pybullet
             self.client = BulletClient(connection_mode=pybullet.DIRECT)
         c = self.client
-        c.setGravity(*self.gravity)
+        c.setGravity(0.0, 0.0, 0.0)  # gravity is in the forces we apply (one implementation)
         c.setPhysicsEngineParameter(numSubSteps=0, deterministicOverlappingPairs=1)
         self.bodies = []
         self._step_set = None
-        self.work = integrators.Workspace(model.node_count, model.thread_count)
-        self.external = np.zeros((model.node_count, 3))
-        self.cg_tolerance = 1e-8
-        self.gravity_free = np.zeros(3)  # PyBullet applies gravity itself
 
     def _create(self, state: NetState) -> None:
         c, m = self.client, self.model
@@ -54,18 +50,25 @@ class BulletEngine(Engine):
             body = c.createMultiBody(baseMass=float(m.mass[i]), baseCollisionShapeIndex=shape,
                                      basePosition=state.position[i].tolist(),
                                      useMaximalCoordinates=True)
-            inertia = 0.4 * m.mass[i] * m.radius[i] ** 2
             # mass and inertia must be set together, or PyBullet zeroes the mass
             c.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0,
-                             mass=float(m.mass[i]), localInertiaDiagonal=[inertia] * 3,
+                             mass=float(m.mass[i]), localInertiaDiagonal=[m.inertia[i]] * 3,
                              activationState=self.pb.ACTIVATION_STATE_DISABLE_SLEEPING)
             c.resetBaseVelocity(body, linearVelocity=state.velocity[i].tolist())
+            if m.fixed[i]:  # a clamp is a rigid joint: a PyBullet fixed constraint to the world
+                c.createConstraint(body, -1, -1, -1, self.pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
+                                   state.position[i].tolist())
             self.bodies.append(body)
 
     def _read(self, state: NetState) -> None:
         pose, twist = self.client.getBasePositionAndOrientation, self.client.getBaseVelocity
-        state.position[:] = [pose(body)[0] for body in self.bodies]
-        state.velocity[:] = [twist(body)[0] for body in self.bodies]
+        poses = [pose(body) for body in self.bodies]
+        twists = [twist(body) for body in self.bodies]
+        state.position[:] = [p[0] for p in poses]
+        state.velocity[:] = [t[0] for t in twists]
+        if self.bending:
+            state.orientation[:] = [p[1] for p in poses]
+            state.angular_velocity[:] = [t[1] for t in twists]
 
     def advance(self, state: NetState, t_end: float) -> None:
         interval = t_end - state.time
@@ -78,36 +81,29 @@ class BulletEngine(Engine):
         if self._step_set != dt:
             self.client.setPhysicsEngineParameter(fixedTimeStep=dt)
             self._step_set = dt
-        m, w, c = self.model, self.work, self.client
-        implicit = self.integrator == "implicit_euler"
-        apply = c.applyExternalForce
+        c, w = self.client, self.work
+        method = integrators.INTEGRATOR_IDS[self.integrator]
+        apply, apply_torque = c.applyExternalForce, c.applyExternalTorque
         frame = self.pb.WORLD_FRAME
+        mass_over_dt = self.model.mass[:, None] / dt
         for _ in range(steps):
-            if implicit:
-                integrators.implicit_increment(
-                    state.position, state.velocity, m.mass, m.pairs, m.rest_length,
-                    m.axial_stiffness, m.axial_damping, self.gravity_free, self.external, dt,
-                    self.cg_tolerance, w.force, w.tension, w.along, w.across, w.axis, w.dv,
-                    w.cg, w.block_inv, w.cg_iterations)
-                force = w.dv * (m.mass[:, None] / dt)
-            else:
-                integrators.symplectic_increment(
-                    state.position, state.velocity, m.mass, m.pairs, m.rest_length,
-                    m.axial_stiffness, m.axial_damping, self.gravity_free, self.external, dt,
-                    w.force, w.tension, w.dv)
-                force = w.force
+            quat, omega = self.rotations(state)
+            integrators.increment(method, self.bending, state.position, state.velocity, quat,
+                                  omega, self.arrays, w.arrays(), self.gravity, self.external,
+                                  dt, self.cg_tolerance)
+            force = w.dv * mass_over_dt
             for body, f, x in zip(self.bodies, force.tolist(), state.position.tolist(),
                                   strict=True):
                 apply(body, -1, f, x, frame)
+            if self.bending:
+                for body, tau in zip(self.bodies, w.torque.tolist(), strict=True):
+                    apply_torque(body, -1, tau, frame)
             c.stepSimulation()
             self.steps += 1
             self._read(state)
             if not np.isfinite(state.position).all():
                 break
         state.time = t_end
-
-    def stats(self) -> dict:
-        return {"steps": self.steps, "cg_iterations": int(self.work.cg_iterations[0])}
 
     def close(self) -> None:
         if self.client is not None:

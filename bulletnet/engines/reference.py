@@ -2,15 +2,26 @@
 the same right-hand side as the other engines, at tight tolerances. The paper's MATLAB role.
 
 It is slow on the paper's nets (the thread dampers cap its step near 3e-6 s); use it on short
-horizons, or to check the converged fine-step runs that stand in for it."""
+horizons, or to check the converged fine-step runs that stand in for it. With bending the
+state carries quaternions, integrated as dq/dt = (w, 0) q / 2 and renormalized when used."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..forces.axial import axial_forces
+from .. import integrators
 from ..state import NetState
 from .base import Engine
+
+
+def quaternion_rate(quat: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """dq/dt = (w, 0) (x) q / 2 for world-frame angular velocities, shape (N, 4)."""
+    x, y, z, w = quat.T
+    wx, wy, wz = omega.T
+    return 0.5 * np.stack([wx * w + wy * z - wz * y,
+                           wy * w + wz * x - wx * z,
+                           wz * w + wx * y - wy * x,
+                           -(wx * x + wy * y + wz * z)], axis=1)
 
 
 class ReferenceEngine(Engine):
@@ -19,8 +30,7 @@ class ReferenceEngine(Engine):
     def __init__(self, scenario, model):
         super().__init__(scenario, model)
         self._solver = None
-        self._force = np.zeros((model.node_count, 3))
-        self._tension = np.zeros(model.thread_count)
+        self._free = ~model.fixed[:, None]
 
     @property
     def integrator(self) -> str:
@@ -30,23 +40,37 @@ class ReferenceEngine(Engine):
     def dt(self) -> float:
         return 0.0
 
-    def _rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
-        m = self.model
-        n = m.node_count
+    def _split(self, y: np.ndarray):
+        n = self.model.node_count
         pos = y[: 3 * n].reshape(n, 3)
-        vel = y[3 * n:].reshape(n, 3)
-        force = self._force
-        force[:] = m.mass[:, None] * self.gravity
-        axial_forces(pos, vel, m.pairs, m.rest_length, m.axial_stiffness, m.axial_damping,
-                     force, self._tension)
-        return np.concatenate([vel.ravel(), (force / m.mass[:, None]).ravel()])
+        vel = y[3 * n: 6 * n].reshape(n, 3)
+        if not self.bending:
+            return pos, vel, np.zeros((0, 4)), np.zeros((0, 3))
+        quat = y[6 * n: 10 * n].reshape(n, 4)
+        quat = quat / np.linalg.norm(quat, axis=1)[:, None]
+        return pos, vel, quat, y[10 * n:].reshape(n, 3)
+
+    def _rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
+        m, w = self.model, self.work
+        pos, vel, quat, omega = self._split(y)
+        integrators.increment(integrators.SYMPLECTIC_EULER, self.bending, pos, vel, quat,
+                              omega, self.arrays, w.arrays(), self.gravity, self.external,
+                              1.0, 0.0)  # dt = 1: dv is the acceleration [m/s^2]
+        parts = [vel * self._free, w.dv]
+        if self.bending:
+            alpha = w.torque / m.inertia[:, None] * self._free
+            parts += [quaternion_rate(quat, omega * self._free), alpha]
+        return np.concatenate([p.ravel() for p in parts])
 
     def advance(self, state: NetState, t_end: float) -> None:
         from scipy.integrate import DOP853
 
         sim = self.scenario.simulation
         if self._solver is None:
-            y0 = np.concatenate([state.position.ravel(), state.velocity.ravel()])
+            parts = [state.position, state.velocity]
+            if self.bending:
+                parts += [state.orientation, state.angular_velocity]
+            y0 = np.concatenate([p.ravel() for p in parts])
             self._solver = DOP853(self._rhs, state.time, y0, self.scenario.scene.duration,
                                   rtol=sim.rtol, atol=sim.atol)
         solver = self._solver
@@ -57,9 +81,12 @@ class ReferenceEngine(Engine):
             state.position[:] = np.nan
             return
         y = solver.y if solver.t == t_end else solver.dense_output()(t_end)
-        n = self.model.node_count
-        state.position[:] = y[: 3 * n].reshape(n, 3)
-        state.velocity[:] = y[3 * n:].reshape(n, 3)
+        pos, vel, quat, omega = self._split(y)
+        state.position[:] = pos
+        state.velocity[:] = vel
+        if self.bending:
+            state.orientation[:] = quat
+            state.angular_velocity[:] = omega
         state.time = t_end
 
     def stats(self) -> dict:
