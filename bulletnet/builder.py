@@ -22,7 +22,8 @@ def thread_parameters(s: Scenario, rest: np.ndarray, r_thread: np.ndarray,
     """Axial (Eq. 3), transverse (Eq. 5) and angular (Eq. 4) stiffness and damping of threads
     of rest lengths ``rest`` [m] and radii ``r_thread`` [m], shape (P,). The bending dampers use
     omega_n1 = sqrt(k / m_ref) of the first thread, computed separately for t and b (MODEL.md:
-    with the inner thread and the inner-node mass this reproduces Table 7)."""
+    with the inner thread and the inner-node mass this reproduces Table 7), all scaled by
+    ``bending.stiffness_scale``."""
     e, damp = s.materials.net.young_modulus, s.damping
     area = math.pi * r_thread**2
     second_moment = math.pi * r_thread**4 / 4.0          # I = pi r^4 / 4
@@ -31,13 +32,14 @@ def thread_parameters(s: Scenario, rest: np.ndarray, r_thread: np.ndarray,
     k_b = e * second_moment / rest
     omega_t = math.sqrt(k_t[0] / m_ref)
     omega_b = math.sqrt(k_b[0] / m_ref)
+    scale = s.bending.stiffness_scale
     return {
         "axial_stiffness": k_a,
         "axial_damping": 2.0 * damp.axial_ratio * k_a / damp.axial_reference_frequency,
-        "transverse_stiffness": k_t,
-        "transverse_damping": 2.0 * damp.bending_ratio * k_t / omega_t,
-        "bending_stiffness": k_b,
-        "bending_damping": 2.0 * damp.bending_ratio * k_b / omega_b,
+        "transverse_stiffness": scale * k_t,
+        "transverse_damping": scale * 2.0 * damp.bending_ratio * k_t / omega_t,
+        "bending_stiffness": scale * k_b,
+        "bending_damping": scale * 2.0 * damp.bending_ratio * k_b / omega_b,
     }
 
 
@@ -55,7 +57,7 @@ def build_model(s: Scenario) -> NetModel:
 
 
 def _finish(s: Scenario, *, pairs, rest, r_thread, mass, kind, m_ref, fixed, load,
-            nodes_per_side) -> NetModel:
+            nodes_per_side, bilateral) -> NetModel:
     density = np.where(kind == NodeKind.CORNER_MASS, s.materials.corner_mass.density,
                        s.materials.net.density)
     radius = sphere_radius(mass, density)
@@ -66,7 +68,8 @@ def _finish(s: Scenario, *, pairs, rest, r_thread, mass, kind, m_ref, fixed, loa
         nodes_per_side=nodes_per_side, mass=mass, radius=radius, kind=kind, pairs=pairs,
         rest_length=rest, thread_radius=r_thread,
         **thread_parameters(s, rest, r_thread, m_ref),
-        inertia=0.4 * mass * radius**2, rest_axis=axis, fixed=fixed, load=load)
+        inertia=0.4 * mass * radius**2, rest_axis=axis, fixed=fixed, load=load,
+        bilateral=np.full(pairs.shape[0], bilateral))
 
 
 def _build_net(s: Scenario) -> NetModel:
@@ -86,11 +89,13 @@ def _build_net(s: Scenario) -> NetModel:
     n = ns * ns + 4
     return _finish(s, pairs=pairs, rest=rest, r_thread=r_thread, mass=mass, kind=kind,
                    m_ref=m_ref, fixed=np.zeros(n, dtype=bool), load=np.zeros((n, 3)),
-                   nodes_per_side=ns)
+                   nodes_per_side=ns, bilateral=False)
 
 
 def _build_beam(s: Scenario) -> NetModel:
-    """Fig. 2: two masses (half the beam each, Eq. 2) and one thread; node 0 is clamped."""
+    """Fig. 2: two masses (half the beam each, Eq. 2) and one element; node 0 is clamped. The
+    element is bilateral (a beam resists compression; a tension-only thread would let the tip
+    slide in along the joint's free axis)."""
     beam = s.beam
     pairs = np.array([[0, 1]], dtype=np.int64)
     rest, r_thread = np.array([beam.length]), np.array([beam.radius])
@@ -99,7 +104,8 @@ def _build_beam(s: Scenario) -> NetModel:
     load[1] = beam.tip_load
     return _finish(s, pairs=pairs, rest=rest, r_thread=r_thread, mass=mass,
                    kind=np.zeros(2, dtype=np.int8), m_ref=mass[1],
-                   fixed=np.array([True, False]), load=load, nodes_per_side=0)
+                   fixed=np.array([True, False]), load=load, nodes_per_side=0,
+                   bilateral=True)
 
 
 def _layout(s: Scenario) -> np.ndarray:

@@ -52,6 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--duration", type=_positive, metavar="S", help="simulated time [s]")
     run.add_argument("--record-rate", type=_positive, metavar="HZ",
                      help="frames recorded per simulated second [Hz]")
+    run.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None,
+                     help="oriented nodes with the bending springs of Sec. 3.2 on/off; "
+                          "default: the scene's")
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scene key, e.g. --set net.nodes_per_side=6 "
                           "(values in SI units, TOML syntax)")
@@ -92,11 +95,12 @@ def cmd_run(args) -> int:
 
     flags = {"simulation.engine": args.engine, "simulation.integrator": args.integrator,
              "simulation.dt": args.dt, "scene.duration": args.duration,
-             "simulation.record_rate": args.record_rate}
+             "simulation.record_rate": args.record_rate, "bending.enabled": args.bending}
     scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
     out = Path(args.out or f"{scene.scene.name}.h5")
     progress = None if args.quiet else _ProgressBar()
-    print(f"bulletnet: {scene.scene.name}: engine {scene.simulation.engine}, "
+    print(f"bulletnet: {scene.scene.name}: engine {scene.simulation.engine}, bending "
+          f"{'on' if scene.bending.enabled else 'off'}, "
           f"{scene.scene.duration:g} s simulated -> {out}", file=sys.stderr)
     result = run(scene, out, progress=progress, force=args.force)
     if progress:

@@ -36,7 +36,7 @@ def model_arrays(model: NetModel) -> tuple:
     m = model
     return (m.mass, m.pairs, m.rest_length, m.axial_stiffness, m.axial_damping,
             m.transverse_stiffness, m.transverse_damping, m.bending_stiffness,
-            m.bending_damping, m.inertia, m.rest_axis, m.fixed, m.load)
+            m.bending_damping, m.inertia, m.rest_axis, m.fixed, m.load, m.bilateral)
 
 
 class Workspace:
@@ -76,8 +76,8 @@ class Workspace:
 def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending):
     """Gravity, loads, ``external`` [N] (N, 3) and, with bending, the bending forces and
     torques, into work's force and torque arrays; the threads' shear into work's shear."""
-    (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed,
-     load) = model
+    (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
+     bilateral) = model
     force, torque, shear = work[0], work[1], work[3]
     for i in range(pos.shape[0]):
         for a in range(3):
@@ -173,13 +173,13 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     """Velocity increment dv [m/s] of one linearly implicit Euler step (see module doc), into
     work's dv (which holds the previous increment on entry: the CG warm start). Work's force
     must hold the non-axial forces on entry (:func:`external_forces`)."""
-    (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed,
-     load) = model
+    (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
+     bilateral) = model
     (force, torque, tension, shear, along, across, axis, dv, cg, block_inv,
      iterations) = work
     n = pos.shape[0]
-    axial_linearization(pos, vel, pairs, rest, k_a, c_a, dt, force, tension, along, across,
-                        axis)
+    axial_linearization(pos, vel, pairs, rest, k_a, c_a, bilateral, dt, force, tension, along,
+                        across, axis)
     r, z, d, ad = cg[0], cg[1], cg[2], cg[3]
     # right-hand side dt F - dt^2 K v, in r
     for i in range(n):
@@ -256,10 +256,10 @@ def implicit_increment(pos, vel, model, work, dt, tol):
 def symplectic_increment(pos, vel, model, work, dt):
     """Velocity increment dv = dt F / m [m/s] of one symplectic Euler step, into work's dv.
     Work's force must hold the non-axial forces on entry (:func:`external_forces`)."""
-    mass, pairs, rest, k_a, c_a, fixed = model[0], model[1], model[2], model[3], model[4], \
-        model[11]
+    mass, pairs, rest, k_a, c_a = model[0], model[1], model[2], model[3], model[4]
+    fixed, bilateral = model[11], model[13]
     force, tension, dv = work[0], work[2], work[7]
-    axial_forces(pos, vel, pairs, rest, k_a, c_a, force, tension)
+    axial_forces(pos, vel, pairs, rest, k_a, c_a, bilateral, force, tension)
     for i in range(pos.shape[0]):
         for a in range(3):
             dv[i, a] = 0.0 if fixed[i] else dt * force[i, a] / mass[i]

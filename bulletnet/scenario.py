@@ -80,6 +80,8 @@ class Beam:
 class Bending:
     enabled: bool = _f(False, "-")
     """Oriented nodes with the angular (k_b) and transverse (k_t) springs of Sec. 3.2."""
+    stiffness_scale: float = _f(1.0, "-", ">=0")
+    """Factor on k_t, k_b and their dampers [-]; 0 is the paper's Table 3 check."""
 
 
 @dataclass(frozen=True)

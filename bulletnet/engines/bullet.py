@@ -47,9 +47,10 @@ class BulletEngine(Engine):
             shape = -1
             if self.scenario.contact.enabled:
                 shape = c.createCollisionShape(self.pb.GEOM_SPHERE, radius=float(m.radius[i]))
+            # a multibody base, not a maximal-coordinates body: PyBullet 3.2.7 applies
+            # applyExternalTorque on the latter one step late (measured on a single body)
             body = c.createMultiBody(baseMass=float(m.mass[i]), baseCollisionShapeIndex=shape,
-                                     basePosition=state.position[i].tolist(),
-                                     useMaximalCoordinates=True)
+                                     basePosition=state.position[i].tolist())
             # mass and inertia must be set together, or PyBullet zeroes the mass
             c.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0,
                              mass=float(m.mass[i]), localInertiaDiagonal=[m.inertia[i]] * 3,

@@ -3,6 +3,7 @@
 For thread p from node i to node j: l = |x_j - x_i|, e = (x_j - x_i) / l,
 v_r = (v_j - v_i) . e, T = k (l - l_0) + c v_r. The force +T e acts on i and -T e on j only
 if l > l_0 and T > 0; otherwise the thread pushes nothing and its tension is exactly zero.
+A ``bilateral`` element (the cantilever's beam) also pushes: T acts whatever its sign.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import numpy as np
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def thread_tension(p, pos, vel, pairs, rest, k, c):
+def thread_tension(p, pos, vel, pairs, rest, k, c, bilateral):
     """Tension T [N] of thread p and its unit direction e (i -> j) and length l [m].
 
     Returns (T, ex, ey, ez, l); T is 0.0 for a slack thread or one closing faster than its
@@ -22,25 +23,26 @@ def thread_tension(p, pos, vel, pairs, rest, k, c):
     dy = pos[j, 1] - pos[i, 1]
     dz = pos[j, 2] - pos[i, 2]
     length = np.sqrt(dx * dx + dy * dy + dz * dz)
-    if length <= rest[p]:
+    if length <= rest[p] and not bilateral[p]:
         return 0.0, 0.0, 0.0, 0.0, length
     inv = 1.0 / length
     ex, ey, ez = dx * inv, dy * inv, dz * inv
     vr = ((vel[j, 0] - vel[i, 0]) * ex + (vel[j, 1] - vel[i, 1]) * ey
           + (vel[j, 2] - vel[i, 2]) * ez)
     tension = k[p] * (length - rest[p]) + c[p] * vr
-    if tension <= 0.0:
+    if tension <= 0.0 and not bilateral[p]:
         return 0.0, ex, ey, ez, length
     return tension, ex, ey, ez, length
 
 
 @nb.njit(cache=True, error_model="numpy")
-def axial_forces(pos, vel, pairs, rest, k, c, force, tension):
-    """Add every thread's force [N] into ``force`` (N, 3); write tensions [N] into ``tension`` (P,)."""
+def axial_forces(pos, vel, pairs, rest, k, c, bilateral, force, tension):
+    """Add every thread's force [N] into ``force`` (N, 3); write tensions [N] into ``tension``
+    (P,); ``bilateral`` (P,) marks elements that also push."""
     for p in range(pairs.shape[0]):
-        t, ex, ey, ez, _ = thread_tension(p, pos, vel, pairs, rest, k, c)
+        t, ex, ey, ez, _ = thread_tension(p, pos, vel, pairs, rest, k, c, bilateral)
         tension[p] = t
-        if t > 0.0:
+        if t != 0.0:
             i, j = pairs[p, 0], pairs[p, 1]
             force[i, 0] += t * ex
             force[i, 1] += t * ey
@@ -51,18 +53,19 @@ def axial_forces(pos, vel, pairs, rest, k, c, force, tension):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def axial_linearization(pos, vel, pairs, rest, k, c, dt, force, tension, along, across, axis):
+def axial_linearization(pos, vel, pairs, rest, k, c, bilateral, dt, force, tension, along,
+                        across, axis):
     """Thread forces as :func:`axial_forces`, plus each taut thread's implicit-Euler block.
 
     The block of thread p in dt * dF/dv + dt^2 * dF/dx (with the non-symmetric d(v_r)/dx term
     dropped) is ``across[p] * I + (along[p] - across[p]) * e e^T``, e = ``axis[p]``:
-    along = dt c + dt^2 k [kg], across = dt^2 k (l - l_0) / l [kg] (geometric stiffness).
-    Slack threads get zero blocks."""
+    along = dt c + dt^2 k [kg], across = dt^2 k max(l - l_0, 0) / l [kg] (geometric
+    stiffness, kept >= 0 so the system stays positive definite). Slack threads get zero blocks."""
     for p in range(pairs.shape[0]):
-        t, ex, ey, ez, length = thread_tension(p, pos, vel, pairs, rest, k, c)
+        t, ex, ey, ez, length = thread_tension(p, pos, vel, pairs, rest, k, c, bilateral)
         tension[p] = t
         axis[p, 0], axis[p, 1], axis[p, 2] = ex, ey, ez
-        if t > 0.0:
+        if t != 0.0:
             i, j = pairs[p, 0], pairs[p, 1]
             force[i, 0] += t * ex
             force[i, 1] += t * ey
@@ -71,7 +74,7 @@ def axial_linearization(pos, vel, pairs, rest, k, c, dt, force, tension, along, 
             force[j, 1] -= t * ey
             force[j, 2] -= t * ez
             along[p] = dt * c[p] + dt * dt * k[p]
-            across[p] = dt * dt * k[p] * (length - rest[p]) / length
+            across[p] = dt * dt * k[p] * max(length - rest[p], 0.0) / length
         else:
             along[p] = 0.0
             across[p] = 0.0
