@@ -69,7 +69,7 @@ def _finish(s: Scenario, *, pairs, rest, r_thread, mass, kind, m_ref, fixed, loa
         rest_length=rest, thread_radius=r_thread,
         **thread_parameters(s, rest, r_thread, m_ref),
         inertia=0.4 * mass * radius**2, rest_axis=axis, fixed=fixed, load=load,
-        bilateral=np.full(pairs.shape[0], bilateral))
+        bilateral=bilateral)
 
 
 def _build_net(s: Scenario) -> NetModel:

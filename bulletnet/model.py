@@ -58,8 +58,8 @@ class NetModel:
     """Clamped nodes: position and orientation held [-], shape (N,), bool."""
     load: np.ndarray
     """Constant external force on each node (e.g. a tip load) [N], shape (N, 3)."""
-    bilateral: np.ndarray
-    """Elements that also resist compression (a beam, not a thread) [-], shape (P,), bool."""
+    bilateral: bool
+    """Whether the elements also resist compression (a beam, not threads)."""
 
     def __post_init__(self):
         for name in self.__dataclass_fields__:

@@ -3,7 +3,8 @@
 For thread p from node i to node j: l = |x_j - x_i|, e = (x_j - x_i) / l,
 v_r = (v_j - v_i) . e, T = k (l - l_0) + c v_r. The force +T e acts on i and -T e on j only
 if l > l_0 and T > 0; otherwise the thread pushes nothing and its tension is exactly zero.
-A ``bilateral`` element (the cantilever's beam) also pushes: T acts whatever its sign.
+With ``bilateral`` set (the cantilever's beam element) T acts whatever its sign. It is one
+flag for all elements, so the compiled loop keeps a single branch-free path.
 """
 
 from __future__ import annotations
@@ -23,14 +24,14 @@ def thread_tension(p, pos, vel, pairs, rest, k, c, bilateral):
     dy = pos[j, 1] - pos[i, 1]
     dz = pos[j, 2] - pos[i, 2]
     length = np.sqrt(dx * dx + dy * dy + dz * dz)
-    if length <= rest[p] and not bilateral[p]:
+    if length <= rest[p] and not bilateral:
         return 0.0, 0.0, 0.0, 0.0, length
     inv = 1.0 / length
     ex, ey, ez = dx * inv, dy * inv, dz * inv
     vr = ((vel[j, 0] - vel[i, 0]) * ex + (vel[j, 1] - vel[i, 1]) * ey
           + (vel[j, 2] - vel[i, 2]) * ez)
     tension = k[p] * (length - rest[p]) + c[p] * vr
-    if tension <= 0.0 and not bilateral[p]:
+    if tension <= 0.0 and not bilateral:
         return 0.0, ex, ey, ez, length
     return tension, ex, ey, ez, length
 
@@ -38,7 +39,7 @@ def thread_tension(p, pos, vel, pairs, rest, k, c, bilateral):
 @nb.njit(cache=True, error_model="numpy")
 def axial_forces(pos, vel, pairs, rest, k, c, bilateral, force, tension):
     """Add every thread's force [N] into ``force`` (N, 3); write tensions [N] into ``tension``
-    (P,); ``bilateral`` (P,) marks elements that also push."""
+    (P,); with ``bilateral`` set the elements also push."""
     for p in range(pairs.shape[0]):
         t, ex, ey, ez, _ = thread_tension(p, pos, vel, pairs, rest, k, c, bilateral)
         tension[p] = t
