@@ -1,4 +1,4 @@
-"""The ``bulletnet`` command line: run, params, compare, metrics.
+"""The ``bulletnet`` command line: run, params, compare, metrics, plot.
 
 Errors are one line on stderr: exit code 2 for bad input, 3 for a diverged run, 130 for an
 interrupted one."""
@@ -77,6 +77,12 @@ def build_parser() -> argparse.ArgumentParser:
     metrics.add_argument("--json", action="store_true")
     metrics.add_argument("--every", type=_positive, default=0.1, metavar="S",
                          help="table row interval [s] (text output only)")
+    plot = sub.add_parser("plot", help="the paper's deployment figures as PNG")
+    plot.add_argument("a", metavar="A.h5")
+    plot.add_argument("b", metavar="B.h5", nargs="?", help="a second run to overlay")
+    plot.add_argument("--out", required=True, metavar="DIR", help="folder for the PNG files")
+    plot.add_argument("--times", type=float, nargs="+", metavar="S",
+                      help="mouth snapshot times [s] (default: 7 evenly spaced)")
     return parser
 
 
@@ -241,6 +247,17 @@ def cmd_metrics(args) -> int:
     return 0
 
 
+def cmd_plot(args) -> int:
+    from .plots import plot_recordings
+    from .recording import open_recording
+
+    a = open_recording(args.a)
+    b = open_recording(args.b) if args.b else None
+    for path in plot_recordings(a, b, args.out, args.times):
+        print(path)
+    return 0
+
+
 def _terminate(signum, frame):
     raise KeyboardInterrupt
 
@@ -248,7 +265,7 @@ def _terminate(signum, frame):
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": cmd_run, "params": cmd_params, "compare": cmd_compare,
-               "metrics": cmd_metrics}[args.command]
+               "metrics": cmd_metrics, "plot": cmd_plot}[args.command]
     signal.signal(signal.SIGTERM, _terminate)
     try:
         return handler(args)

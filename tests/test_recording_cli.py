@@ -148,3 +148,17 @@ def test_rmse_of_a_rigid_shift(tmp_path):
     assert r["rmse_pos_max"] == pytest.approx(0.005, rel=1e-9)
     assert r["rmse_pos_avg"] == pytest.approx(0.005, rel=1e-9)
     assert r["rmse_vel_max"] == 0.0
+
+
+def test_plot_writes_the_figures(tmp_path):
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    for path, flag in ((a, "--no-bending"), (b, "--bending")):
+        assert cli("run", "deployment", *TINY, flag, "--out", str(path),
+                   "--quiet").returncode == 0
+    proc = cli("plot", str(a), str(b), "--out", str(tmp_path / "fig"))
+    assert proc.returncode == 0, proc.stderr
+    names = {"mouth.png", "height.png", "diagonal.png", "area.png", "rmse.png",
+             "corner_thread.png"}
+    assert {p.name for p in (tmp_path / "fig").iterdir()} == names
+    for name in names:
+        assert (tmp_path / "fig" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
