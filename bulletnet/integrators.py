@@ -65,27 +65,38 @@ class Workspace:
         """Inverse block-Jacobi preconditioner [1/kg], shape (N, 3, 3)."""
         self.cg_iterations = np.zeros(1, dtype=np.int64)
         """CG iterations summed over all implicit steps [-]."""
+        self.bend = np.zeros((n, 3))
+        """Bending forces of the last evaluation [N], shape (N, 3)."""
+        self.step_count = np.zeros(1, dtype=np.int64)
+        """Steps taken, for the bending schedule [-]."""
 
     def arrays(self) -> tuple:
         """The scratch arrays in the order the compiled kernels unpack them."""
         return (self.force, self.torque, self.tension, self.shear, self.along, self.across,
-                self.axis, self.dv, self.cg, self.block_inv, self.cg_iterations)
+                self.axis, self.dv, self.cg, self.block_inv, self.cg_iterations, self.bend,
+                self.step_count)
 
 
 @nb.njit(cache=True, error_model="numpy")
-def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending):
-    """Gravity, loads, ``external`` [N] (N, 3) and, with bending, the bending forces and
-    torques, into work's force and torque arrays; the threads' shear into work's shear."""
+def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending_weight):
+    """Gravity, loads and ``external`` [N] (N, 3) into work's force; with ``bending_weight``
+    w > 0 also w times the bending forces, and w times the bending torques into work's torque
+    (zeroed otherwise), and the threads' shear [N] into work's shear."""
     (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
      bilateral) = model
-    force, torque, shear = work[0], work[1], work[3]
+    force, torque, shear, bend = work[0], work[1], work[3], work[11]
     for i in range(pos.shape[0]):
         for a in range(3):
             force[i, a] = mass[i] * gravity[a] + load[i, a] + external[i, a]
-    if bending:
-        torque[:] = 0.0
-        bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b, force,
+    torque[:] = 0.0
+    if bending_weight > 0.0:
+        bend[:] = 0.0
+        bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b, bend,
                        torque, shear)
+        for i in range(pos.shape[0]):
+            for a in range(3):
+                force[i, a] += bending_weight * bend[i, a]
+                torque[i, a] *= bending_weight
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -175,8 +186,8 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     must hold the non-axial forces on entry (:func:`external_forces`)."""
     (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
      bilateral) = model
-    (force, torque, tension, shear, along, across, axis, dv, cg, block_inv,
-     iterations) = work
+    (force, torque, tension, shear, along, across, axis, dv, cg, block_inv, iterations,
+     bend, step_count) = work
     n = pos.shape[0]
     axial_linearization(pos, vel, pairs, rest, k_a, c_a, bilateral, dt, force, tension, along,
                         across, axis)
@@ -266,26 +277,43 @@ def symplectic_increment(pos, vel, model, work, dt):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def increment(method, bending, pos, vel, quat, omega, model, work, gravity, external, dt,
-              tol):
-    """All forces at the state, then the method's velocity increment into work's dv."""
-    external_forces(pos, vel, quat, omega, model, work, gravity, external, bending)
+def bending_weight(bending, every, work):
+    """Weight of the bending forces this step: ``every`` on every ``every``-th step (an impulse
+    standing for the soft bending springs over that interval), 0 otherwise or without bending."""
+    if not bending:
+        return 0.0
+    return float(every) if work[12][0] % every == 0 else 0.0
+
+
+@nb.njit(cache=True, error_model="numpy")
+def increment(method, weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol):
+    """All forces at the state (bending with ``weight``), then the method's velocity increment
+    into work's dv; counts the step."""
+    external_forces(pos, vel, quat, omega, model, work, gravity, external, weight)
     if method == SYMPLECTIC_EULER:
         symplectic_increment(pos, vel, model, work, dt)
     else:
         implicit_increment(pos, vel, model, work, dt, tol)
+    work[12][0] += 1
 
 
 @nb.njit(cache=True, error_model="numpy")
-def advance(method, bending, steps, pos, vel, quat, omega, model, work, gravity, external,
-            dt, tol):
-    """Take ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]); stop early on
-    a non-finite state and return the number of steps taken."""
+def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, gravity,
+            external, dt, tol):
+    """Take ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]), the bending
+    forces every ``every`` steps; stop early on a non-finite state and return the number of
+    steps taken. Between bending impulses the angular velocities are constant, so the
+    orientations are advanced once over the whole interval (exactly the same rotation)."""
     n = pos.shape[0]
     inertia, fixed = model[9], model[11]
     torque, dv = work[1], work[7]
+    pending = 0  # steps of rotation not yet applied to quat
     for step in range(steps):
-        increment(method, bending, pos, vel, quat, omega, model, work, gravity, external, dt,
+        weight = bending_weight(bending, every, work)
+        if weight > 0.0 and pending > 0:
+            integrate_rotation(quat, omega, pending * dt)
+            pending = 0
+        increment(method, weight, pos, vel, quat, omega, model, work, gravity, external, dt,
                   tol)
         finite = True
         for i in range(n):
@@ -296,11 +324,15 @@ def advance(method, bending, steps, pos, vel, quat, omega, model, work, gravity,
                     and np.isfinite(pos[i, 2])):
                 finite = False
         if bending:
-            for i in range(n):
-                if not fixed[i]:
-                    for a in range(3):
-                        omega[i, a] += dt * torque[i, a] / inertia[i]
-            integrate_rotation(quat, omega, dt)
+            if weight > 0.0:
+                for i in range(n):
+                    if not fixed[i]:
+                        for a in range(3):
+                            omega[i, a] += dt * torque[i, a] / inertia[i]
+            pending += 1
         if not finite:
-            return step + 1
+            steps = step + 1
+            break
+    if pending > 0:
+        integrate_rotation(quat, omega, pending * dt)
     return steps

@@ -82,6 +82,9 @@ class Bending:
     """Oriented nodes with the angular (k_b) and transverse (k_t) springs of Sec. 3.2."""
     stiffness_scale: float = _f(1.0, "-", ">=0")
     """Factor on k_t, k_b and their dampers [-]; 0 is the paper's Table 3 check."""
+    every: int = _f(0, "-", ">=0")
+    """Evaluate the (soft) bending forces every this many steps, as impulses [-] (multirate);
+    0 picks the largest interval resolving the nodes' rotational dynamics (see README)."""
 
 
 @dataclass(frozen=True)
@@ -208,6 +211,7 @@ def _check_value(value: Any, f: dataclasses.Field, where: str) -> Any:
         ">0": value > 0,
         ">=0": value >= 0,
         ">=2": value >= 2,
+
         "(0,1]": 0 < value <= 1,
         "[0,0.5)": 0 <= value < 0.5,
         "[-90,90]": -90 <= value <= 90,

@@ -222,3 +222,19 @@ def test_fast_matches_reference_with_bending(tmp_path):
     fast = bn.run(scene, tmp_path / "f.h5")
     r = bn.metrics.rmse(bn.open_recording(fast.path), bn.open_recording(ref.path))
     assert r["rmse_pos_avg"] < 1e-4
+
+
+def test_bending_impulse_interval_costs_less_than_the_step(tmp_path):
+    # Reference: the converged bending run. Evaluating the soft bending springs every n steps
+    # (as impulses, the automatic n) must add less error than halving the step removes, i.e.
+    # stay below the base integrator's own truncation error.
+    scene = small_scene(**{"net.fold_ratio": 0.9, "scene.duration": 0.2,
+                           "bending.enabled": True})
+    runs = {}
+    for name, over in (("auto", {}), ("every1", {"bending.every": 1}),
+                       ("half", {"bending.every": 1, "simulation.dt": 5e-7})):
+        runs[name] = bn.open_recording(bn.run(scene.with_overrides(over),
+                                              tmp_path / f"{name}.h5").path)
+    truncation = bn.metrics.rmse(runs["every1"], runs["half"])["rmse_pos_avg"]
+    multirate = bn.metrics.rmse(runs["auto"], runs["every1"])["rmse_pos_avg"]
+    assert 0 < multirate < truncation

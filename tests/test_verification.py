@@ -42,7 +42,7 @@ def pull_apart(model: NetModel, method: str, dt: float, t_end: float, v0: float 
     steps = round(t_end / dt)
     lengths = np.empty(steps)
     for s in range(steps):
-        integrators.advance(integrators.INTEGRATOR_IDS[method], False, 1, pos, vel,
+        integrators.advance(integrators.INTEGRATOR_IDS[method], False, 1, 1, pos, vel,
                             np.zeros((0, 4)), np.zeros((0, 3)), integrators.model_arrays(model),
                             w.arrays(), np.zeros(3), np.zeros((2, 3)), dt, 1e-12)
         lengths[s] = pos[1, 0] - pos[0, 0]

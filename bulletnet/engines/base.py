@@ -16,6 +16,24 @@ DEFAULT_DT = {"symplectic_euler": 1e-6, "implicit_euler": 1e-5}
 """Default step of the fixed-step integrators [s] (see README: accuracy against the reference)."""
 
 
+def bending_interval(model: NetModel, dt: float, margin: float = 0.3) -> int:
+    """Steps between bending impulses: the largest n with n dt <= margin / max_i(rate_i), rate_i
+    the fastest rotational time scale of node i — the damping rate sum(c_b + c_t l^2) / J_i or
+    the frequency sqrt(sum(k_b + k_t l^2) / J_i) over its threads (clamped nodes excluded)."""
+    stiffness = model.bending_stiffness + model.transverse_stiffness * model.rest_length**2
+    damping = model.bending_damping + model.transverse_damping * model.rest_length**2
+    k_sum = np.zeros(model.node_count)
+    c_sum = np.zeros(model.node_count)
+    for end in (0, 1):
+        np.add.at(k_sum, model.pairs[:, end], stiffness)
+        np.add.at(c_sum, model.pairs[:, end], damping)
+    free = ~model.fixed
+    rate = np.maximum(c_sum / model.inertia, np.sqrt(k_sum / model.inertia))[free].max()
+    if rate <= 0:
+        return 1
+    return max(1, math.floor(margin / (rate * dt)))
+
+
 class Engine(ABC):
     """Advances a :class:`NetState` in place. Engines hold no state of the net but their own
     scratch space (and, for ``bullet``, the PyBullet world mirroring it)."""
@@ -29,6 +47,9 @@ class Engine(ABC):
         self.work = integrators.Workspace(model.node_count, model.thread_count)
         self.bending = scenario.bending.enabled
         """Whether nodes carry orientations and the bending springs act."""
+        self.bending_every = scenario.bending.every or (
+            bending_interval(model, self.dt) if self.dt > 0 else 1)
+        """Steps between evaluations of the bending forces (applied as impulses) [-]."""
         self.gravity = np.asarray(scenario.scene.gravity, dtype=float)
         """Gravitational acceleration [m/s^2], shape (3,)."""
         self.external = np.zeros((model.node_count, 3))
@@ -66,9 +87,9 @@ class Engine(ABC):
         each shape (P,); the shear is zero without bending."""
         work = integrators.Workspace(self.model.node_count, self.model.thread_count)
         quat, omega = self.rotations(state)
-        integrators.increment(integrators.SYMPLECTIC_EULER, self.bending, state.position,
-                              state.velocity, quat, omega, self.arrays, work.arrays(),
-                              self.gravity, self.external, 1.0, 0.0)
+        integrators.increment(integrators.SYMPLECTIC_EULER, 1.0 if self.bending else 0.0,
+                              state.position, state.velocity, quat, omega, self.arrays,
+                              work.arrays(), self.gravity, self.external, 1.0, 0.0)
         return work.tension, work.shear
 
     def stats(self) -> dict:

@@ -89,7 +89,8 @@ class BulletEngine(Engine):
         mass_over_dt = self.model.mass[:, None] / dt
         for _ in range(steps):
             quat, omega = self.rotations(state)
-            integrators.increment(method, self.bending, state.position, state.velocity, quat,
+            weight = integrators.bending_weight(self.bending, self.bending_every, w.arrays())
+            integrators.increment(method, weight, state.position, state.velocity, quat,
                                   omega, self.arrays, w.arrays(), self.gravity, self.external,
                                   dt, self.cg_tolerance)
             force = w.dv * mass_over_dt

@@ -18,7 +18,8 @@ class FastEngine(Engine):
         steps = self.steps_for(interval)
         quat, omega = self.rotations(state)
         taken = integrators.advance(
-            integrators.INTEGRATOR_IDS[self.integrator], self.bending, steps, state.position,
+            integrators.INTEGRATOR_IDS[self.integrator], self.bending, self.bending_every, steps,
+            state.position,
             state.velocity, quat, omega, self.arrays, self.work.arrays(), self.gravity,
             self.external, interval / steps, self.cg_tolerance)
         self.steps += taken

@@ -53,9 +53,9 @@ class ReferenceEngine(Engine):
     def _rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
         m, w = self.model, self.work
         pos, vel, quat, omega = self._split(y)
-        integrators.increment(integrators.SYMPLECTIC_EULER, self.bending, pos, vel, quat,
-                              omega, self.arrays, w.arrays(), self.gravity, self.external,
-                              1.0, 0.0)  # dt = 1: dv is the acceleration [m/s^2]
+        integrators.increment(integrators.SYMPLECTIC_EULER, 1.0 if self.bending else 0.0, pos,
+                              vel, quat, omega, self.arrays, w.arrays(), self.gravity,
+                              self.external, 1.0, 0.0)  # dt = 1: dv is the acceleration [m/s^2]
         parts = [vel * self._free, w.dv]
         if self.bending:
             alpha = w.torque / m.inertia[:, None] * self._free

@@ -22,9 +22,8 @@ import numpy as np
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def rotate(q, vx, vy, vz):
+def rotate(qx, qy, qz, qw, vx, vy, vz):
     """Rotate the vector v by the unit quaternion q = (x, y, z, w)."""
-    qx, qy, qz, qw = q[0], q[1], q[2], q[3]
     tx = 2.0 * (qy * vz - qz * vy)
     ty = 2.0 * (qz * vx - qx * vz)
     tz = 2.0 * (qx * vy - qy * vx)
@@ -34,18 +33,20 @@ def rotate(q, vx, vy, vz):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def relative_rotation_vector(qi, qj):
+def relative_rotation_vector(ix, iy, iz, iw, jx, jy, jz, jw):
     """Rotation vector [rad] of q_j q_i^* (world frame), the shortest of the two."""
-    # q_j * conj(q_i)
-    x = -qj[3] * qi[0] + qj[0] * qi[3] - qj[1] * qi[2] + qj[2] * qi[1]
-    y = -qj[3] * qi[1] + qj[1] * qi[3] - qj[2] * qi[0] + qj[0] * qi[2]
-    z = -qj[3] * qi[2] + qj[2] * qi[3] - qj[0] * qi[1] + qj[1] * qi[0]
-    w = qj[3] * qi[3] + qj[0] * qi[0] + qj[1] * qi[1] + qj[2] * qi[2]
+    x = -jw * ix + jx * iw - jy * iz + jz * iy
+    y = -jw * iy + jy * iw - jz * ix + jx * iz
+    z = -jw * iz + jz * iw - jx * iy + jy * ix
+    w = jw * iw + jx * ix + jy * iy + jz * iz
     if w < 0.0:
         x, y, z, w = -x, -y, -z, -w
     s = np.sqrt(x * x + y * y + z * z)
-    if s < 1e-12:
-        return 2.0 * x, 2.0 * y, 2.0 * z
+    if s < 1e-2 * w:
+        # angle / s = 2 atan(s / w) / s by its series (next term ~ (s/w)^10: below round-off)
+        r2 = (s / w) ** 2
+        g = 2.0 / w * (1.0 - r2 * (1.0 / 3.0 - r2 * (0.2 - r2 * (1.0 / 7.0 - r2 / 9.0))))
+        return g * x, g * y, g * z
     angle = 2.0 * np.arctan2(s, w)
     return angle * x / s, angle * y / s, angle * z / s
 
@@ -60,7 +61,8 @@ def bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b,
         rx = pos[j, 0] - pos[i, 0]
         ry = pos[j, 1] - pos[i, 1]
         rz = pos[j, 2] - pos[i, 2]
-        ax, ay, az = rotate(quat[i], rest_axis[p, 0], rest_axis[p, 1], rest_axis[p, 2])
+        ax, ay, az = rotate(quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3],
+                            rest_axis[p, 0], rest_axis[p, 1], rest_axis[p, 2])
         s = ax * rx + ay * ry + az * rz
         dx, dy, dz = rx - s * ax, ry - s * ay, rz - s * az
         wx, wy, wz = omega[i, 0], omega[i, 1], omega[i, 2]
@@ -81,7 +83,8 @@ def bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b,
         torque[i, 0] += ry * fz - rz * fy
         torque[i, 1] += rz * fx - rx * fz
         torque[i, 2] += rx * fy - ry * fx
-        px, py, pz = relative_rotation_vector(quat[i], quat[j])
+        px, py, pz = relative_rotation_vector(quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3],
+                                              quat[j, 0], quat[j, 1], quat[j, 2], quat[j, 3])
         tx = k_b[p] * px + c_b[p] * (omega[j, 0] - omega[i, 0])
         ty = k_b[p] * py + c_b[p] * (omega[j, 1] - omega[i, 1])
         tz = k_b[p] * pz + c_b[p] * (omega[j, 2] - omega[i, 2])
@@ -99,9 +102,9 @@ def bending_energy(pos, quat, pairs, rest_axis, k_t, k_b) -> float:
     for p in range(pairs.shape[0]):
         i, j = pairs[p]
         r = pos[j] - pos[i]
-        a = np.array(rotate(quat[i], *rest_axis[p]))
+        a = np.array(rotate(*quat[i], *rest_axis[p]))
         d = r - (a @ r) * a
-        phi = np.array(relative_rotation_vector(quat[i], quat[j]))
+        phi = np.array(relative_rotation_vector(*quat[i], *quat[j]))
         energy += 0.5 * k_t[p] * (d @ d) + 0.5 * k_b[p] * (phi @ phi)
     return float(energy)
 
@@ -111,11 +114,15 @@ def integrate_rotation(quat, omega, dt):
     """q <- exp(dt w / 2) q for every node: the exact rotation by w dt [rad], renormalized."""
     for i in range(quat.shape[0]):
         wx, wy, wz = omega[i, 0] * dt, omega[i, 1] * dt, omega[i, 2] * dt
-        angle = np.sqrt(wx * wx + wy * wy + wz * wz)
-        if angle < 1e-300:
-            continue
-        s = np.sin(0.5 * angle) / angle
-        dx, dy, dz, dw = wx * s, wy * s, wz * s, np.cos(0.5 * angle)
+        a2 = wx * wx + wy * wy + wz * wz
+        if a2 < 1e-6:  # angle < 1e-3 rad: series of sin(a/2)/a and cos(a/2), exact to round-off
+            s = 0.5 - a2 * (1.0 / 48.0 - a2 / 3840.0)
+            dw = 1.0 - a2 * (0.125 - a2 / 384.0)
+        else:
+            angle = np.sqrt(a2)
+            s = np.sin(0.5 * angle) / angle
+            dw = np.cos(0.5 * angle)
+        dx, dy, dz = wx * s, wy * s, wz * s
         qx, qy, qz, qw = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
         nx = dw * qx + dx * qw + dy * qz - dz * qy
         ny = dw * qy + dy * qw + dz * qx - dx * qz
