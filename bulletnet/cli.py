@@ -97,13 +97,14 @@ def _scene(args, extra: dict | None = None):
 def cmd_run(args) -> int:
     from pathlib import Path
 
-    from .simulate import run
+    from .simulate import preflight, run
 
     flags = {"simulation.engine": args.engine, "simulation.integrator": args.integrator,
              "simulation.dt": args.dt, "scene.duration": args.duration,
              "simulation.record_rate": args.record_rate, "bending.enabled": args.bending}
     scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
     out = Path(args.out or f"{scene.scene.name}.h5")
+    preflight(scene, out, args.force)
     progress = None if args.quiet else _ProgressBar()
     print(f"bulletnet: {scene.scene.name}: engine {scene.simulation.engine}, bending "
           f"{'on' if scene.bending.enabled else 'off'}, "

@@ -26,10 +26,11 @@ Root attributes: ``scenario`` (the TOML as run, overrides applied), ``engine``,
 completed / interrupted / diverged), ``message``, ``wall_time_s`` [s], ``bulletnet_version``,
 ``format_version``, ``nodes_per_side``.
 
-The file is written as ``NAME.part`` in SWMR mode, flushed every ``flush_interval`` seconds of
-wall time, and renamed to ``NAME`` when the run ends however it ends. After a hard kill the
-``.part`` file still opens and holds every frame up to the last flush, with status
-``running``.
+The file is written as ``NAME.part`` in SWMR mode, flushed after the first frame and then
+every ``flush_interval`` seconds of wall time, and renamed to ``NAME`` when the run ends
+however it ends. After a hard kill the ``.part`` file still opens (``h5py.File(path, "r",
+swmr=True)``, or :func:`bulletnet.open_recording`) and holds every frame up to the last flush,
+with status ``running``.
 """
 
 from __future__ import annotations
@@ -115,7 +116,7 @@ class Recorder:
             ds.resize(k + 1, axis=0)
             ds[k] = values[name]
         self.frames += 1
-        if _time.monotonic() - self._last_flush >= self.flush_interval:
+        if self.frames == 1 or _time.monotonic() - self._last_flush >= self.flush_interval:
             self.flush()
 
     def flush(self) -> None:

@@ -64,12 +64,16 @@ def open_recording(path: str | os.PathLike) -> Recording:
     if not p.is_file():
         raise RecordingError(f"{p}: no such recording")
     try:
-        f = h5py.File(p, "r", swmr=True)
-    except OSError:
-        try:
-            f = h5py.File(p, "r")
-        except OSError as exc:
+        f = h5py.File(p, "r")
+    except OSError as exc:
+        # a run killed while writing leaves its SWMR file marked open for write; SWMR readers
+        # may open it (only then: SWMR reads of a damaged file retry for a long time)
+        if "already open for write" not in str(exc):
             raise RecordingError(f"{p}: not a readable HDF5 file ({exc})") from None
+        try:
+            f = h5py.File(p, "r", swmr=True)
+        except OSError as exc2:
+            raise RecordingError(f"{p}: not a readable HDF5 file ({exc2})") from None
     with f:
         if "format_version" not in f.attrs or "nodes/position" not in f:
             raise RecordingError(f"{p}: not a bulletnet recording")

@@ -253,9 +253,9 @@ def _build(cls, doc: Any, path: str, source: str):
 
 def from_dict(doc: dict, source: str = "<dict>") -> Scenario:
     """Validate a scene document (as parsed from TOML) into a :class:`Scenario`."""
-    scenario = _build(Scenario, doc, "", source)
+    scenario = dataclasses.replace(_build(Scenario, doc, "", source), source=source)
     _check_consistency(scenario)
-    return dataclasses.replace(scenario, source=source)
+    return scenario
 
 
 def _check_consistency(s: Scenario) -> None:

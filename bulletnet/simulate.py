@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import signal
+import threading
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -17,6 +20,9 @@ from .errors import DivergenceError, ScenarioError
 from .recorder import Recorder
 from .scenario import Scenario, to_toml
 from .state import NetState
+
+MAX_RECORDING_BYTES = 2e9
+"""Recordings estimated larger than this [bytes] need ``force`` (or a lower record rate)."""
 
 Progress = Callable[[float, float, float], None]
 """Called after each recorded frame with (simulated time [s], duration [s], wall time [s])."""
@@ -47,6 +53,30 @@ def frame_times(duration: float, record_rate: float) -> np.ndarray:
     return times
 
 
+def recording_bytes(scenario: Scenario, model) -> float:
+    """Estimated size of a run's recording [bytes]: float64 series per frame (time, positions,
+    velocities, tensions, shear forces; orientations and angular velocities with bending)."""
+    n, p = model.node_count, model.thread_count
+    per_frame = 1 + 6 * n + 2 * p + (7 * n if scenario.bending.enabled else 0)
+    frames = frame_times(scenario.scene.duration, scenario.simulation.record_rate).size
+    return 8.0 * per_frame * frames
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """Ignore SIGINT and SIGTERM inside the block (a second Ctrl-C while the recording is
+    being closed must not leave it half written); a no-op off the main thread."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    saved = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
 def speed_limit(s: Scenario, state: NetState) -> float:
     """Node speed [m/s] above which a run is taken to have diverged: 100 times the largest
     speed the scene can explain (initial speeds plus free fall over the whole duration)."""
@@ -69,16 +99,29 @@ def _check(state: NetState, limit: float, dt: float) -> None:
             "for the thread stiffness and damping", state.time)
 
 
+def preflight(scenario: Scenario, out: str | os.PathLike | None, force: bool = False):
+    """Check a run before it starts (existing output, recording size); return its model."""
+    if out is not None and Path(out).exists() and not force:
+        raise ScenarioError(f"{out}: exists; pass --force (force=True) to overwrite it")
+    model = build_model(scenario)
+    if out is not None and not force:
+        size = recording_bytes(scenario, model)
+        if size > MAX_RECORDING_BYTES:
+            raise ScenarioError(
+                f"{out}: the recording would take about {size / 1e9:.1f} GB; lower "
+                "--record-rate or pass --force")
+    return model
+
+
 def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         progress: Progress | None = None, force: bool = False) -> RunResult:
     """Simulate ``scenario``; record to ``out`` (HDF5) if given.
 
-    An existing ``out`` is an error unless ``force``. On Ctrl-C the recording is closed with
+    An existing ``out``, or a recording estimated above :data:`MAX_RECORDING_BYTES`, is an
+    error unless ``force``. On Ctrl-C the recording is closed with
     status ``interrupted`` and KeyboardInterrupt is re-raised; on divergence with status
     ``diverged`` and :class:`DivergenceError` is re-raised. Every frame so far is kept."""
-    if out is not None and Path(out).exists() and not force:
-        raise ScenarioError(f"{out}: exists; pass --force (force=True) to overwrite it")
-    model = build_model(scenario)
+    model = preflight(scenario, out, force)
     state = initial_state(scenario, model)
     engine = make_engine(scenario, model)
     times = frame_times(scenario.scene.duration, scenario.simulation.record_rate)
@@ -120,8 +163,9 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         frames = 0
         if recorder is not None:
             frames = recorder.frames
-            path = recorder.close(status, message, wall_time_s=wall,
-                                  **{f"stats_{k}": v for k, v in stats.items()})
+            with _signals_deferred():
+                path = recorder.close(status, message, wall_time_s=wall,
+                                      **{f"stats_{k}": v for k, v in stats.items()})
     if error is not None:
         raise error
     return RunResult(path=path, status=status, state=state, wall_time_s=wall, stats=stats,
