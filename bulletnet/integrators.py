@@ -22,7 +22,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .forces.axial import axial_forces, axial_linearization
+from .forces.axial import add_pair, axial_forces, axial_linearization
 from .forces.bending import bending_forces, integrate_rotation
 from .model import NetModel
 
@@ -34,9 +34,10 @@ INTEGRATOR_IDS = {"symplectic_euler": SYMPLECTIC_EULER, "implicit_euler": IMPLIC
 def model_arrays(model: NetModel) -> tuple:
     """The model's arrays in the order the compiled kernels unpack them."""
     m = model
+    inv_mass = np.where(m.fixed, 0.0, 1.0 / m.mass)  # clamped nodes: no velocity change
     return (m.mass, m.pairs, m.rest_length, m.axial_stiffness, m.axial_damping,
             m.transverse_stiffness, m.transverse_damping, m.bending_stiffness,
-            m.bending_damping, m.inertia, m.rest_axis, m.fixed, m.load, m.bilateral)
+            m.bending_damping, m.inertia, m.rest_axis, m.fixed, m.load, m.bilateral, inv_mass)
 
 
 class Workspace:
@@ -83,13 +84,13 @@ def external_forces(pos, vel, quat, omega, model, work, gravity, external, bendi
     w > 0 also w times the bending forces, and w times the bending torques into work's torque
     (zeroed otherwise), and the threads' shear [N] into work's shear."""
     (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
-     bilateral) = model
+     bilateral, inv_mass) = model
     force, torque, shear, bend = work[0], work[1], work[3], work[11]
     for i in range(pos.shape[0]):
         for a in range(3):
             force[i, a] = mass[i] * gravity[a] + load[i, a] + external[i, a]
-    torque[:] = 0.0
-    if bending_weight > 0.0:
+    if bending_weight > 0.0:  # (torque is only read on steps with a bending impulse)
+        torque[:] = 0.0
         bend[:] = 0.0
         bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b, bend,
                        torque, shear)
@@ -114,15 +115,8 @@ def _apply_blocks(x, pairs, along, across, axis, mass, fixed, out):
         d1 = x[i, 1] - x[j, 1]
         d2 = x[i, 2] - x[j, 2]
         s = (along[p] - across[p]) * (d0 * axis[p, 0] + d1 * axis[p, 1] + d2 * axis[p, 2])
-        w0 = across[p] * d0 + s * axis[p, 0]
-        w1 = across[p] * d1 + s * axis[p, 1]
-        w2 = across[p] * d2 + s * axis[p, 2]
-        out[i, 0] += w0
-        out[i, 1] += w1
-        out[i, 2] += w2
-        out[j, 0] -= w0
-        out[j, 1] -= w1
-        out[j, 2] -= w2
+        add_pair(out, i, j, across[p] * d0 + s * axis[p, 0], across[p] * d1 + s * axis[p, 1],
+                 across[p] * d2 + s * axis[p, 2])
     for i in range(x.shape[0]):
         if fixed[i]:
             out[i, 0], out[i, 1], out[i, 2] = x[i, 0], x[i, 1], x[i, 2]
@@ -185,7 +179,7 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     work's dv (which holds the previous increment on entry: the CG warm start). Work's force
     must hold the non-axial forces on entry (:func:`external_forces`)."""
     (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
-     bilateral) = model
+     bilateral, inv_mass) = model
     (force, torque, tension, shear, along, across, axis, dv, cg, block_inv, iterations,
      bend, step_count) = work
     n = pos.shape[0]
@@ -205,10 +199,8 @@ def implicit_increment(pos, vel, model, work, dt, tol):
         d1 = vel[i, 1] - vel[j, 1]
         d2 = vel[i, 2] - vel[j, 2]
         s = (kt - across[p]) * (d0 * axis[p, 0] + d1 * axis[p, 1] + d2 * axis[p, 2])
-        for a, da in ((0, d0), (1, d1), (2, d2)):
-            w = across[p] * da + s * axis[p, a]
-            r[i, a] -= w
-            r[j, a] += w
+        add_pair(r, j, i, across[p] * d0 + s * axis[p, 0], across[p] * d1 + s * axis[p, 1],
+                 across[p] * d2 + s * axis[p, 2])
     clamped = False
     for i in range(n):
         if fixed[i]:
@@ -267,13 +259,14 @@ def implicit_increment(pos, vel, model, work, dt, tol):
 def symplectic_increment(pos, vel, model, work, dt):
     """Velocity increment dv = dt F / m [m/s] of one symplectic Euler step, into work's dv.
     Work's force must hold the non-axial forces on entry (:func:`external_forces`)."""
-    mass, pairs, rest, k_a, c_a = model[0], model[1], model[2], model[3], model[4]
-    fixed, bilateral = model[11], model[13]
+    pairs, rest, k_a, c_a = model[1], model[2], model[3], model[4]
+    bilateral, inv_mass = model[13], model[14]
     force, tension, dv = work[0], work[2], work[7]
     axial_forces(pos, vel, pairs, rest, k_a, c_a, bilateral, force, tension)
     for i in range(pos.shape[0]):
+        h = dt * inv_mass[i]
         for a in range(3):
-            dv[i, a] = 0.0 if fixed[i] else dt * force[i, a] / mass[i]
+            dv[i, a] = h * force[i, a]
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -301,28 +294,24 @@ def increment(method, weight, pos, vel, quat, omega, model, work, gravity, exter
 def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, gravity,
             external, dt, tol):
     """Take ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]), the bending
-    forces every ``every`` steps; stop early on a non-finite state and return the number of
-    steps taken. Between bending impulses the angular velocities are constant, so the
+    forces every ``every`` steps (the caller checks the result for non-finite values; a
+    diverging chunk is at most one record interval). Between bending impulses the angular velocities are constant, so the
     orientations are advanced once over the whole interval (exactly the same rotation)."""
     n = pos.shape[0]
     inertia, fixed = model[9], model[11]
     torque, dv = work[1], work[7]
     pending = 0  # steps of rotation not yet applied to quat
-    for step in range(steps):
+    for _ in range(steps):
         weight = bending_weight(bending, every, work)
         if weight > 0.0 and pending > 0:
             integrate_rotation(quat, omega, pending * dt)
             pending = 0
         increment(method, weight, pos, vel, quat, omega, model, work, gravity, external, dt,
                   tol)
-        finite = True
         for i in range(n):
             for a in range(3):
                 vel[i, a] += dv[i, a]
                 pos[i, a] += dt * vel[i, a]
-            if not (np.isfinite(pos[i, 0]) and np.isfinite(pos[i, 1])
-                    and np.isfinite(pos[i, 2])):
-                finite = False
         if bending:
             if weight > 0.0:
                 for i in range(n):
@@ -330,9 +319,5 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
                         for a in range(3):
                             omega[i, a] += dt * torque[i, a] / inertia[i]
             pending += 1
-        if not finite:
-            steps = step + 1
-            break
     if pending > 0:
         integrate_rotation(quat, omega, pending * dt)
-    return steps

@@ -114,7 +114,8 @@ class Damping:
     axial_ratio: float = _f(0.106, "-", ">=0")
     """Axial damping ratio xi_a [-] (Table 1)."""
     axial_reference_frequency: float = _f(100.544, "rad/s", ">0")
-    """omega in c_a = 2 xi_a k_a / omega [rad/s]; 100.544 reproduces Table 7 (c_a/k_a = 2.1085e-3 s)."""
+    """omega in c_a = 2 xi_a k_a / omega [rad/s]; 100.544 reproduces Table 7
+    (c_a / k_a = 2.1085e-3 s)."""
     bending_ratio: float = _f(0.014, "-", ">=0")
     """Bending damping ratio xi_b [-] (Table 1)."""
 
@@ -124,7 +125,8 @@ class Launch:
     corner_speed: float = _f(2.5, "m/s", ">=0")
     """Initial speed of each corner mass [m/s] (Sec. 4)."""
     elevation: float = _f(45.0, "deg", "[-90,90]")
-    """Angle of the corner-mass velocity above the net plane [deg]; in plane it points radially out."""
+    """Angle of the corner-mass velocity above the net plane [deg]; in plane it points
+    radially out."""
 
 
 @dataclass(frozen=True)

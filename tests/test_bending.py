@@ -118,7 +118,8 @@ def test_forces_and_torques_are_minus_energy_gradient(bent):
             plus, minus = pos.copy(), pos.copy()
             plus[i, a] += h
             minus[i, a] -= h
-            grad = (bending_energy(plus, quat, *args) - bending_energy(minus, quat, *args)) / (2 * h)
+            grad = (bending_energy(plus, quat, *args)
+                    - bending_energy(minus, quat, *args)) / (2 * h)
             assert -grad == pytest.approx(force[i, a], rel=1e-5, abs=1e-7 * np.abs(force).max())
             axis = np.eye(3)[a]
             qp, qm = quat.copy(), quat.copy()

@@ -96,6 +96,7 @@ def test_divergence_is_typed_and_kept(tmp_path):
     (["run", "deployment", "--set", "net.nodes_per_side=2.5"], "integer"),
     (["run", "deployment", "--dt", "0"], "positive"),
     (["run", "deployment", "--dt", "0.01", "--record-rate", "1000"], "record_rate"),
+    (["run", "deployment", "--record-rate", "2e6"], "record_rate"),
     (["compare", "missing_a.h5", "missing_b.h5"], "no such recording"),
     (["metrics", "pyproject.toml"], "not a readable HDF5"),
 ])

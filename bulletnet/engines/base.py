@@ -96,5 +96,5 @@ class Engine(ABC):
         """Counters of the run so far (steps, solver iterations)."""
         return {"steps": self.steps, "cg_iterations": int(self.work.cg_iterations[0])}
 
-    def close(self) -> None:
+    def close(self) -> None:  # noqa: B027 (optional hook; only bullet holds resources)
         """Release engine resources (the PyBullet world)."""

@@ -4,8 +4,8 @@ shared kernels and applied as external forces every step; PyBullet integrates.
 PyBullet's rigid-body update is semi-implicit Euler (v += dt F / m, then x += dt v; likewise
 for the angular velocity and the orientation), so the engine applies m dv / dt for the
 integrator's velocity increment dv (for ``symplectic_euler`` that is the net force itself) and
-the bending torques: PyBullet then takes exactly the integrator's step. Threads are forces, not PyBullet constraints: a point-to-point
-constraint is bilateral and cannot go slack.
+the bending torques: PyBullet then takes exactly the integrator's step. Threads are forces,
+not PyBullet constraints: a point-to-point constraint is bilateral and cannot go slack.
 
 Bodies are created without collision shapes when the scene has no contact, with zero linear
 and angular damping, sleeping disabled, and a sphere's inertia 2 m r^2 / 5.
@@ -97,7 +97,7 @@ class BulletEngine(Engine):
             for body, f, x in zip(self.bodies, force.tolist(), state.position.tolist(),
                                   strict=True):
                 apply(body, -1, f, x, frame)
-            if self.bending:
+            if weight > 0.0:
                 for body, tau in zip(self.bodies, w.torque.tolist(), strict=True):
                     apply_torque(body, -1, tau, frame)
             c.stepSimulation()

@@ -14,6 +14,17 @@ import numpy as np
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
+def add_pair(array, i, j, x, y, z):
+    """array[i] += (x, y, z); array[j] -= (x, y, z): an action and its reaction."""
+    array[i, 0] += x
+    array[i, 1] += y
+    array[i, 2] += z
+    array[j, 0] -= x
+    array[j, 1] -= y
+    array[j, 2] -= z
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def thread_tension(p, pos, vel, pairs, rest, k, c, bilateral):
     """Tension T [N] of thread p and its unit direction e (i -> j) and length l [m].
 
@@ -44,13 +55,7 @@ def axial_forces(pos, vel, pairs, rest, k, c, bilateral, force, tension):
         t, ex, ey, ez, _ = thread_tension(p, pos, vel, pairs, rest, k, c, bilateral)
         tension[p] = t
         if t != 0.0:
-            i, j = pairs[p, 0], pairs[p, 1]
-            force[i, 0] += t * ex
-            force[i, 1] += t * ey
-            force[i, 2] += t * ez
-            force[j, 0] -= t * ex
-            force[j, 1] -= t * ey
-            force[j, 2] -= t * ez
+            add_pair(force, pairs[p, 0], pairs[p, 1], t * ex, t * ey, t * ez)
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -67,13 +72,7 @@ def axial_linearization(pos, vel, pairs, rest, k, c, bilateral, dt, force, tensi
         tension[p] = t
         axis[p, 0], axis[p, 1], axis[p, 2] = ex, ey, ez
         if t != 0.0:
-            i, j = pairs[p, 0], pairs[p, 1]
-            force[i, 0] += t * ex
-            force[i, 1] += t * ey
-            force[i, 2] += t * ez
-            force[j, 0] -= t * ex
-            force[j, 1] -= t * ey
-            force[j, 2] -= t * ez
+            add_pair(force, pairs[p, 0], pairs[p, 1], t * ex, t * ey, t * ez)
             along[p] = dt * c[p] + dt * dt * k[p]
             across[p] = dt * dt * k[p] * max(length - rest[p], 0.0) / length
         else:

@@ -20,6 +20,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from .axial import add_pair
+
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def rotate(qx, qy, qz, qw, vx, vy, vz):
@@ -74,12 +76,7 @@ def bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b,
         fy = k_t[p] * dy + c_t[p] * (uy - au * ay)
         fz = k_t[p] * dz + c_t[p] * (uz - au * az)
         shear[p] = np.sqrt(fx * fx + fy * fy + fz * fz)
-        force[i, 0] += fx
-        force[i, 1] += fy
-        force[i, 2] += fz
-        force[j, 0] -= fx
-        force[j, 1] -= fy
-        force[j, 2] -= fz
+        add_pair(force, i, j, fx, fy, fz)
         torque[i, 0] += ry * fz - rz * fy
         torque[i, 1] += rz * fx - rx * fz
         torque[i, 2] += rx * fy - ry * fx
@@ -88,12 +85,7 @@ def bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b,
         tx = k_b[p] * px + c_b[p] * (omega[j, 0] - omega[i, 0])
         ty = k_b[p] * py + c_b[p] * (omega[j, 1] - omega[i, 1])
         tz = k_b[p] * pz + c_b[p] * (omega[j, 2] - omega[i, 2])
-        torque[i, 0] += tx
-        torque[i, 1] += ty
-        torque[i, 2] += tz
-        torque[j, 0] -= tx
-        torque[j, 1] -= ty
-        torque[j, 2] -= tz
+        add_pair(torque, i, j, tx, ty, tz)
 
 
 def bending_energy(pos, quat, pairs, rest_axis, k_t, k_b) -> float:
