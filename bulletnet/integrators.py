@@ -295,8 +295,9 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
             external, dt, tol):
     """Take ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]), the bending
     forces every ``every`` steps (the caller checks the result for non-finite values; a
-    diverging chunk is at most one record interval). Between bending impulses the angular velocities are constant, so the
-    orientations are advanced once over the whole interval (exactly the same rotation)."""
+    diverging chunk is at most one record interval). Between bending impulses the angular
+    velocities are constant, so the orientations are advanced once over the whole interval
+    (exactly the same rotation)."""
     n = pos.shape[0]
     inertia, fixed = model[9], model[11]
     torque, dv = work[1], work[7]
