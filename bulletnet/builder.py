@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from .errors import ScenarioError
 from .model import NetModel, NodeKind
 from .scenario import Scenario
 from .state import NetState
@@ -52,8 +53,19 @@ def lumped_masses(node_count: int, pairs: np.ndarray, thread_mass: np.ndarray) -
 
 
 def build_model(s: Scenario) -> NetModel:
-    """The scene's model: the square net (Eq. 1-5, Table 7) or the clamped beam (Fig. 2)."""
-    return _build_beam(s) if s.scene.kind == "cantilever" else _build_net(s)
+    """The scene's model: the square net (Eq. 1-5, Table 7) or the clamped beam (Fig. 2).
+    A scene whose values are each valid but whose derived quantities overflow (a 1e300 m
+    mesh, say) is a :class:`ScenarioError`."""
+    with np.errstate(all="ignore"):
+        model = _build_beam(s) if s.scene.kind == "cantilever" else _build_net(s)
+        state = initial_state(s, model)
+    for name, value in [*vars(model).items(), ("initial position", state.position),
+                        ("initial velocity", state.velocity)]:
+        if isinstance(value, np.ndarray) and not np.isfinite(value).all():
+            raise ScenarioError(
+                f"{s.source}: derived {name.replace('_', ' ')} is not finite; "
+                "check the magnitudes of the scene's values")
+    return model
 
 
 def _finish(s: Scenario, *, pairs, rest, r_thread, mass, kind, m_ref, fixed, load,
