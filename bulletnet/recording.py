@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 
 from .errors import RecordingError
-from .model import NodeKind
 from .recorder import FORMAT_VERSION
 
 
@@ -49,11 +48,6 @@ class Recording:
     @property
     def status(self) -> str:
         return str(self.attrs.get("status", "unknown"))
-
-    @property
-    def net_node_count(self) -> int:
-        """Ns^2, nodes without the corner masses [-]."""
-        return int(np.count_nonzero(self.kind != NodeKind.CORNER_MASS))
 
 
 def open_recording(path: str | os.PathLike) -> Recording:
