@@ -15,6 +15,7 @@ __version__ = "0.1.0"
 
 from . import metrics
 from .builder import build_model, initial_state
+from .debris import Debris, load_debris
 from .errors import BulletnetError, DivergenceError, RecordingError, ScenarioError
 from .hertz import contact_table
 from .model import NetModel, NodeKind
@@ -26,8 +27,8 @@ from .simulate import RunResult, run
 from .state import NetState
 
 __all__ = [
-    "BulletnetError", "DivergenceError", "NetModel", "NetState", "NodeKind", "Recording",
+    "BulletnetError", "Debris", "DivergenceError", "NetModel", "NetState", "NodeKind", "Recording",
     "RecordingError", "RunResult", "Scenario", "ScenarioError", "__version__", "build_model",
-    "contact_table", "initial_state", "load_scenario", "loads_scenario", "metrics",
+    "contact_table", "initial_state", "load_debris", "load_scenario", "loads_scenario", "metrics",
     "open_recording", "run",
 ]
