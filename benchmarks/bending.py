@@ -13,25 +13,13 @@ Usage: python benchmarks/bending.py [OUT] [--repeats N] [--bullet-horizon S]
 
 from __future__ import annotations
 
-import argparse
 import json
-import statistics
-import time
-from pathlib import Path
 
 import numpy as np
+from common import ERROR_KEYS, errors, output_dir, parser, timed
 
 import bulletnet as bn
 from bulletnet.plots import plot_recordings
-
-
-def timed(scene, path, repeats=1):
-    walls = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = bn.run(scene, path, force=True)
-        walls.append(time.perf_counter() - start)
-    return statistics.median(walls), walls, result
 
 
 def first_time(rec, values, threshold):
@@ -40,13 +28,10 @@ def first_time(rec, values, threshold):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("out", nargs="?", default="benchmarks/out")
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--bullet-horizon", type=float, default=0.05)
-    args = parser.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    p = parser(__doc__)
+    p.add_argument("--bullet-horizon", type=float, default=0.05, help="[s]")
+    args = p.parse_args()
+    out = output_dir(args)
     base = bn.load_scenario("deployment")
     side = (base.net.nodes_per_side - 1) * base.net.mesh_length
     doc = {"scene": "deployment", "duration_s": base.scene.duration}
@@ -64,14 +49,11 @@ def main() -> None:
     if not fine_path.exists():
         bn.run(base.with_overrides({"bending.enabled": True, "bending.every": 1,
                                     "simulation.dt": 2.5e-7}), fine_path)
-    r = bn.metrics.rmse(runs["bending"], bn.open_recording(fine_path))
-    doc["fast_bending_vs_fine"] = {k: r[k] for k in ("rmse_pos_max", "rmse_pos_avg",
-                                                     "rmse_vel_max", "rmse_vel_avg")}
+    doc["fast_bending_vs_fine"] = errors(out / "fast_bending.h5", bn.open_recording(fine_path))
 
     r = bn.metrics.rmse(runs["plain"], runs["bending"])
     doc["table4_with_vs_without"] = {
-        "ours": {k: r[k] for k in ("rmse_pos_max", "rmse_pos_avg", "rmse_vel_max",
-                                   "rmse_vel_avg")},
+        "ours": {k: r[k] for k in ERROR_KEYS},
         "paper": {"rmse_pos_max": 0.759863, "rmse_pos_avg": 0.515628,
                   "rmse_vel_max": 1.474281, "rmse_vel_avg": 1.022107}}
     measures = {}

@@ -14,37 +14,20 @@ Usage: python benchmarks/deployment.py [OUT] [--repeats N] [--bullet-horizon S] 
 
 from __future__ import annotations
 
-import argparse
 import json
 import platform
-import statistics
-import time
-from pathlib import Path
+
+from common import errors, output_dir, parser, timed
 
 import bulletnet as bn
 
 
-def timed_run(scene, path):
-    start = time.perf_counter()
-    result = bn.run(scene, path, force=True)
-    return time.perf_counter() - start, result
-
-
-def errors(path, ref):
-    r = bn.metrics.rmse(bn.open_recording(path), ref)
-    return {k: r[k] for k in ("rmse_pos_max", "rmse_pos_avg", "rmse_vel_max", "rmse_vel_avg",
-                              "samples")}
-
-
 def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("out", nargs="?", default="benchmarks/out")
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--bullet-horizon", type=float, default=0.5)
-    parser.add_argument("--ref-horizon", type=float, default=0.5)
-    args = parser.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    p = parser(__doc__)
+    p.add_argument("--bullet-horizon", type=float, default=0.5, help="[s]")
+    p.add_argument("--ref-horizon", type=float, default=0.5, help="[s]")
+    args = p.parse_args()
+    out = output_dir(args)
     base = bn.load_scenario("deployment")
     duration = base.scene.duration
     doc = {"scene": "deployment", "duration_s": duration, "machine": platform.processor()
@@ -54,36 +37,33 @@ def main() -> None:
     fine_scene = base.with_overrides({"simulation.integrator": "symplectic_euler",
                                       "simulation.dt": 2.5e-7})
     if not fine_path.exists():
-        wall, _ = timed_run(fine_scene, fine_path)
+        wall, _, _ = timed(fine_scene, fine_path)
         doc["fine_wall_s"] = wall
     fine = bn.open_recording(fine_path)
 
     # 1. the adaptive reference against the fine-step stand-in
-    wall, _ = timed_run(base.with_overrides({"simulation.engine": "reference",
-                                             "scene.duration": args.ref_horizon}),
-                        out / "reference.h5")
+    wall, _, _ = timed(base.with_overrides({"simulation.engine": "reference",
+                                            "scene.duration": args.ref_horizon}),
+                       out / "reference.h5")
     doc["reference_vs_fine"] = {"horizon_s": args.ref_horizon, "wall_s": wall,
                                 **errors(out / "reference.h5", fine)}
 
     # 2. fast at its defaults, timed REPEATS times; and the alternatives for scale
-    walls = []
-    for _ in range(args.repeats):
-        wall, result = timed_run(base, out / "fast.h5")
-        walls.append(wall)
+    wall, walls, result = timed(base, out / "fast.h5", args.repeats)
     doc["runs"]["fast"] = {"integrator": base.simulation.integrator, "dt_s": 1e-6,
-                           "wall_s_median": statistics.median(walls), "wall_s_all": walls,
+                           "wall_s_median": wall, "wall_s_all": walls,
                            "steps": result.stats["steps"], **errors(out / "fast.h5", fine)}
     for integrator, dt in (("symplectic_euler", 2e-6), ("implicit_euler", 1e-5)):
         name = f"fast_{integrator}_{dt:g}"
-        wall, result = timed_run(base.with_overrides({"simulation.integrator": integrator,
-                                                      "simulation.dt": dt}), out / f"{name}.h5")
+        wall, _, result = timed(base.with_overrides({"simulation.integrator": integrator,
+                                                     "simulation.dt": dt}), out / f"{name}.h5")
         doc["runs"][name] = {"integrator": integrator, "dt_s": dt, "wall_s_median": wall,
                              "steps": result.stats["steps"], **errors(out / f"{name}.h5", fine)}
 
     # 3. bullet at its defaults over a shorter horizon
-    wall, result = timed_run(base.with_overrides({"simulation.engine": "bullet",
-                                                  "scene.duration": args.bullet_horizon}),
-                             out / "bullet.h5")
+    wall, _, result = timed(base.with_overrides({"simulation.engine": "bullet",
+                                                 "scene.duration": args.bullet_horizon}),
+                            out / "bullet.h5")
     doc["runs"]["bullet"] = {"integrator": base.simulation.integrator, "dt_s": 1e-6,
                              "horizon_s": args.bullet_horizon, "wall_s": wall,
                              "wall_s_scaled_to_duration": wall * duration / args.bullet_horizon,
