@@ -22,6 +22,8 @@ SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
 ENGINES = ("fast", "bullet", "reference")
 INTEGRATORS = ("symplectic_euler", "implicit_euler")
+DEFAULT_DT = {"symplectic_euler": 1e-6, "implicit_euler": 1e-5}
+"""Default step of the fixed-step integrators [s] (see README: accuracy against the reference)."""
 
 
 def _f(default, unit: str, check: str = "", choices: tuple = ()):
@@ -152,6 +154,14 @@ class Simulation:
     atol: float = _f(1e-10, "-", ">0")
     """Absolute tolerance of the reference engine [m, m/s]."""
 
+    @property
+    def step(self) -> float:
+        """The fixed step in force [s]: ``dt``, or the integrator's default; 0 for the
+        adaptive reference engine."""
+        if self.engine == "reference":
+            return 0.0
+        return self.dt or DEFAULT_DT[self.integrator]
+
 
 @dataclass(frozen=True)
 class Scenario:
@@ -262,14 +272,14 @@ def from_dict(doc: dict, source: str = "<dict>") -> Scenario:
 
 def _check_consistency(s: Scenario) -> None:
     """Rules that involve more than one key."""
-    step = s.simulation.dt
+    step = s.simulation.step
     if step > 0 and s.simulation.record_rate * step > 1.0 + 1e-12:
         raise ScenarioError(
-            f"{s.source}: simulation.record_rate: {s.simulation.record_rate} Hz is above the step "
-            f"rate 1/dt = {1 / step:g} Hz; lower the record rate or the step")
-    if step > s.scene.duration:
+            f"{s.source}: simulation.record_rate: {s.simulation.record_rate:g} Hz is above the "
+            f"step rate 1/dt = {1 / step:g} Hz; lower the record rate or the step")
+    if s.simulation.dt > s.scene.duration:
         raise ScenarioError(
-            f"{s.source}: simulation.dt: {step} s is longer than scene.duration "
+            f"{s.source}: simulation.dt: {s.simulation.dt} s is longer than scene.duration "
             f"{s.scene.duration} s")
 
 

@@ -16,7 +16,6 @@ import numpy as np
 
 from .builder import build_model, initial_state
 from .engines import make_engine
-from .engines.base import DEFAULT_DT
 from .errors import DivergenceError, ScenarioError
 from .recorder import Recorder
 from .scenario import Scenario, to_toml
@@ -104,12 +103,6 @@ def preflight(scenario: Scenario, out: str | os.PathLike | None, force: bool = F
     """Check a run before it starts (existing output, recording size); return its model."""
     if out is not None and Path(out).exists() and not force:
         raise ScenarioError(f"{out}: exists; pass --force (force=True) to overwrite it")
-    sim = scenario.simulation
-    step = sim.dt or (DEFAULT_DT[sim.integrator] if sim.engine != "reference" else 0.0)
-    if step * sim.record_rate > 1.0 + 1e-12:
-        raise ScenarioError(
-            f"{scenario.source}: simulation.record_rate: {sim.record_rate:g} Hz is above the "
-            f"step rate 1/dt = {1 / step:g} Hz; lower the record rate")
     model = build_model(scenario)
     if out is not None and not force:
         size = recording_bytes(scenario, model)

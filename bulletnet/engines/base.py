@@ -12,9 +12,6 @@ from ..model import NetModel
 from ..scenario import Scenario
 from ..state import NetState
 
-DEFAULT_DT = {"symplectic_euler": 1e-6, "implicit_euler": 1e-5}
-"""Default step of the fixed-step integrators [s] (see README: accuracy against the reference)."""
-
 
 def bending_interval(model: NetModel, dt: float, margin: float = 0.3) -> int:
     """Steps between bending impulses: the largest n with n dt <= margin / max_i(rate_i), rate_i
@@ -45,6 +42,8 @@ class Engine(ABC):
         self.model = model
         self.arrays = integrators.model_arrays(model)
         self.work = integrators.Workspace(model.node_count, model.thread_count)
+        self._loads_work = integrators.Workspace(model.node_count, model.thread_count)
+        """Scratch space of :meth:`thread_loads` (the stepping workspace keeps its warm start)."""
         self.bending = scenario.bending.enabled
         """Whether nodes carry orientations and the bending springs act."""
         self.bending_every = scenario.bending.every or (
@@ -66,7 +65,7 @@ class Engine(ABC):
     @property
     def dt(self) -> float:
         """Requested step [s] (the engine may shorten it to divide the record interval)."""
-        return self.scenario.simulation.dt or DEFAULT_DT[self.integrator]
+        return self.scenario.simulation.step
 
     def steps_for(self, interval: float) -> int:
         """Whole number of steps covering ``interval`` [s] with steps no longer than :attr:`dt`."""
@@ -85,12 +84,12 @@ class Engine(ABC):
     def thread_loads(self, state: NetState) -> tuple[np.ndarray, np.ndarray]:
         """Axial tension (Eq. 3) and shear force magnitude of every thread at ``state`` [N],
         each shape (P,); the shear is zero without bending."""
-        work = integrators.Workspace(self.model.node_count, self.model.thread_count)
+        work = self._loads_work
         quat, omega = self.rotations(state)
         integrators.increment(integrators.SYMPLECTIC_EULER, 1.0 if self.bending else 0.0,
                               state.position, state.velocity, quat, omega, self.arrays,
                               work.arrays(), self.gravity, self.external, 1.0, 0.0)
-        return work.tension, work.shear
+        return work.tension.copy(), work.shear.copy()
 
     def stats(self) -> dict:
         """Counters of the run so far (steps, solver iterations)."""

@@ -36,10 +36,6 @@ class ReferenceEngine(Engine):
     def integrator(self) -> str:
         return "DOP853"
 
-    @property
-    def dt(self) -> float:
-        return 0.0
-
     def _split(self, y: np.ndarray):
         n = self.model.node_count
         pos = y[: 3 * n].reshape(n, 3)
