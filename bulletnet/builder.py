@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from . import debris as debris_module
 from .errors import ScenarioError
 from .model import NetModel, NodeKind
 from .scenario import Scenario
@@ -155,8 +156,16 @@ def initial_state(s: Scenario, model: NetModel) -> NetState:
             vel[ns * ns + k, :2] = s.launch.corner_speed * math.cos(elev) * outward
             vel[ns * ns + k, 2] = s.launch.corner_speed * math.sin(elev)
     state = NetState(time=0.0, position=pos, velocity=vel)
+    debris = scene_debris(s)
+    if debris is not None:
+        state.debris = debris_module.initial_state(s.debris, debris)
     if s.bending.enabled:
         state.orientation = np.zeros((model.node_count, 4))
         state.orientation[:, 3] = 1.0
         state.angular_velocity = np.zeros((model.node_count, 3))
     return state
+
+
+def scene_debris(s: Scenario):
+    """The scene's :class:`~bulletnet.debris.Debris`, or None if it has none."""
+    return debris_module.load_debris(s.debris.asset) if s.debris.asset else None

@@ -8,6 +8,7 @@ estimate from a compound shape's bounding box is about 2x off for the Apollo CSM
 
 from __future__ import annotations
 
+import functools
 import math
 import tomllib
 from dataclasses import dataclass
@@ -55,17 +56,18 @@ class Debris:
     """Largest diameter [m]."""
 
 
-def part_mesh(part: Part):
-    """The part as a closed trimesh solid (convex hull of its two end sections), in [m]."""
+def part_mesh(part: Part, sections: int = SECTIONS):
+    """The part as a closed trimesh solid (convex hull of its two end sections, circles as
+    polygons of ``sections`` sides), in [m]."""
     import trimesh
 
-    angles = np.linspace(0.0, 2.0 * math.pi, SECTIONS, endpoint=False)
+    angles = np.linspace(0.0, 2.0 * math.pi, sections, endpoint=False)
     rings = []
     for y, r in ((part.y_start, part.radius_start), (part.y_end, part.radius_end)):
         if r == 0.0:
             rings.append(np.array([[0.0, y, 0.0]]))
         else:
-            rings.append(np.stack([r * np.cos(angles), np.full(SECTIONS, y),
+            rings.append(np.stack([r * np.cos(angles), np.full(sections, y),
                                    r * np.sin(angles)], axis=1))
     return trimesh.Trimesh(vertices=np.vstack(rings)).convex_hull
 
@@ -114,8 +116,10 @@ def _part(doc: dict, where: str) -> Part:
     return Part(name=str(doc.get("name", "part")), **values)
 
 
+@functools.lru_cache(maxsize=8)
 def load_debris(name_or_path: str) -> Debris:
-    """A debris asset by name (``apollo_csm``) or path, with its computed mass properties."""
+    """A debris asset by name (``apollo_csm``) or path, with its computed mass properties
+    (cached: treat the result as read-only)."""
     path = Path(name_or_path)
     if not path.is_file():
         path = ASSET_DIR / f"{name_or_path}.toml"
@@ -156,3 +160,99 @@ def create_body(client, debris: Debris, position, orientation=(0.0, 0.0, 0.0, 1.
                           activationState=pybullet.ACTIVATION_STATE_DISABLE_SLEEPING)
     client.resetBaseVelocity(body, list(linear_velocity), list(angular_velocity))
     return body
+
+
+STATE_SIZE = 13
+"""Length of a debris state vector: centre of mass [m] (3), orientation quaternion x, y, z, w
+(4), velocity of the centre of mass [m/s] (3), angular velocity, world frame [rad/s] (3)."""
+
+
+def rotation_quaternion(rotation_vector) -> np.ndarray:
+    """Unit quaternion (x, y, z, w) of a rotation vector [rad], shape (3,) -> (4,)."""
+    r = np.asarray(rotation_vector, dtype=float)
+    angle = float(np.linalg.norm(r))
+    if angle == 0.0:
+        return np.array([0.0, 0.0, 0.0, 1.0])
+    return np.append(r / angle * math.sin(angle / 2), math.cos(angle / 2))
+
+
+def rotation_matrix(q) -> np.ndarray:
+    """Rotation matrix (3, 3) of a unit quaternion (x, y, z, w)."""
+    x, y, z, w = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def initial_state(scene, debris: Debris) -> np.ndarray:
+    """Debris state (:data:`STATE_SIZE`,) from a scene's ``[debris]`` table (origin position
+    [m], rotation vector [deg], velocity [m/s], angular velocity [deg/s])."""
+    q = rotation_quaternion(np.radians(scene.rotation))
+    com = np.asarray(scene.position) + rotation_matrix(q) @ debris.center_of_mass
+    return np.concatenate([com, q, scene.velocity, np.radians(scene.angular_velocity)])
+
+
+def body_origin(state: np.ndarray, debris: Debris) -> np.ndarray:
+    """World position [m] (3,) of the body-frame origin (the geometric centre) of a debris
+    in ``state``."""
+    return state[:3] - rotation_matrix(state[3:7]) @ debris.center_of_mass
+
+
+def visual_mesh(debris: Debris, sections: int = 48) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (V, 3) [m], faces (F, 3)) of the debris' surface in its body frame."""
+    import trimesh
+
+    meshes = [part_mesh(p, sections) for p in debris.parts]
+    mesh = trimesh.util.concatenate(meshes)
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def collision_shape(client, debris: Debris, sections: int = 48) -> int:
+    """A PyBullet compound collision shape: one convex hull per part, in the body frame."""
+    import pybullet
+
+    vertices = [part_mesh(p, sections).vertices.tolist() for p in debris.parts]
+    return client.createCollisionShapeArray(
+        shapeTypes=[pybullet.GEOM_MESH] * len(vertices), vertices=vertices)
+
+
+class RigidDebris:
+    """The debris as a dynamic PyBullet body in a world of its own (the fast engine's
+    debris dynamics): net impulses in, rigid motion out."""
+
+    def __init__(self, debris: Debris, state: np.ndarray):
+        import pybullet
+        from pybullet_utils.bullet_client import BulletClient
+
+        self.pybullet = pybullet
+        self.client = BulletClient(connection_mode=pybullet.DIRECT)
+        self.client.setGravity(0.0, 0.0, 0.0)
+        self.body = create_body(self.client, debris, body_origin(state, debris), state[3:7],
+                                state[7:10], state[10:13])
+        self._step = None
+
+    def step(self, impulse: np.ndarray, interval: float, state: np.ndarray) -> None:
+        """Apply ``impulse`` (6,) (force [N s], moment about the centre of mass [N m s],
+        world frame) as constant force and torque over ``interval`` [s], step, and write the
+        new debris state (:data:`STATE_SIZE`,) into ``state``."""
+        c = self.client
+        if self._step != interval:
+            c.setPhysicsEngineParameter(fixedTimeStep=interval, numSubSteps=0)
+            self._step = interval
+        com, _ = c.getBasePositionAndOrientation(self.body)
+        frame = self.pybullet.WORLD_FRAME
+        c.applyExternalForce(self.body, -1, (impulse[:3] / interval).tolist(), com, frame)
+        c.applyExternalTorque(self.body, -1, (impulse[3:] / interval).tolist(), frame)
+        c.stepSimulation()
+        read_state(c, self.body, state)
+
+    def close(self) -> None:
+        self.client.disconnect()
+
+
+def read_state(client, body: int, state: np.ndarray) -> None:
+    """Write a PyBullet body's state (:data:`STATE_SIZE`,) into ``state``."""
+    com, q = client.getBasePositionAndOrientation(body)
+    v, w = client.getBaseVelocity(body)
+    state[:] = (*com, *q, *v, *w)

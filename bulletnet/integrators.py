@@ -22,6 +22,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from .contact import contact_stage, ensure_pairs
 from .forces.axial import add_pair, axial_forces, axial_linearization
 from .forces.bending import bending_forces, integrate_rotation
 from .model import NetModel
@@ -37,7 +38,8 @@ def model_arrays(model: NetModel) -> tuple:
     inv_mass = np.where(m.fixed, 0.0, 1.0 / m.mass)  # clamped nodes: no velocity change
     return (m.mass, m.pairs, m.rest_length, m.axial_stiffness, m.axial_damping,
             m.transverse_stiffness, m.transverse_damping, m.bending_stiffness,
-            m.bending_damping, m.inertia, m.rest_axis, m.fixed, m.load, m.bilateral, inv_mass)
+            m.bending_damping, m.inertia, m.rest_axis, m.fixed, m.load, m.bilateral, inv_mass,
+            m.radius)
 
 
 class Workspace:
@@ -84,7 +86,7 @@ def external_forces(pos, vel, quat, omega, model, work, gravity, external, bendi
     w > 0 also w times the bending forces, and w times the bending torques into work's torque
     (zeroed otherwise), and the threads' shear [N] into work's shear."""
     (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
-     bilateral, inv_mass) = model
+     bilateral, inv_mass, radius) = model
     force, torque, shear, bend = work[0], work[1], work[3], work[11]
     for i in range(pos.shape[0]):
         for a in range(3):
@@ -179,7 +181,7 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     work's dv (which holds the previous increment on entry: the CG warm start). Work's force
     must hold the non-axial forces on entry (:func:`external_forces`)."""
     (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
-     bilateral, inv_mass) = model
+     bilateral, inv_mass, radius) = model
     (force, torque, tension, shear, along, across, axis, dv, cg, block_inv, iterations,
      bend, step_count) = work
     n = pos.shape[0]
@@ -292,17 +294,26 @@ def increment(method, weight, pos, vel, quat, omega, model, work, gravity, exter
 
 @nb.njit(cache=True, error_model="numpy")
 def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, gravity,
-            external, dt, tol):
-    """Take ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]), the bending
-    forces every ``every`` steps (the caller checks the result for non-finite values; a
-    diverging chunk is at most one record interval). Between bending impulses the angular
-    velocities are constant, so the orientations are advanced once over the whole interval
-    (exactly the same rotation)."""
+            external, dt, tol, contact, t0):
+    """Take up to ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]) from
+    time ``t0`` [s], the bending forces every ``every`` steps, then contact
+    (:func:`bulletnet.contact.contact_stage`, if ``contact`` has any on). Returns the steps
+    taken: fewer only if the self-contact list must grow first (the caller grows it and
+    continues). The caller checks the result for non-finite values; a diverging chunk is
+    at most one record interval. Between bending impulses the angular velocities are
+    constant, so the orientations are advanced once over the whole interval (exactly the
+    same rotation)."""
     n = pos.shape[0]
-    inertia, fixed = model[9], model[11]
+    mass, inertia, fixed = model[0], model[9], model[11]
     torque, dv = work[1], work[7]
+    radius = model[15]
+    flags = contact[20]
+    touching = flags[0] or flags[1]
     pending = 0  # steps of rotation not yet applied to quat
-    for _ in range(steps):
+    taken = 0
+    for step in range(steps):
+        if touching and not ensure_pairs(pos, radius, contact):
+            break
         weight = bending_weight(bending, every, work)
         if weight > 0.0 and pending > 0:
             integrate_rotation(quat, omega, pending * dt)
@@ -313,6 +324,8 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
             for a in range(3):
                 vel[i, a] += dv[i, a]
                 pos[i, a] += dt * vel[i, a]
+        if touching:
+            contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t0 + step * dt)
         if bending:
             if weight > 0.0:
                 for i in range(n):
@@ -320,5 +333,7 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
                         for a in range(3):
                             omega[i, a] += dt * torque[i, a] / inertia[i]
             pending += 1
+        taken += 1
     if pending > 0:
         integrate_rotation(quat, omega, pending * dt)
+    return taken

@@ -135,8 +135,48 @@ class Launch:
 class Contact:
     enabled: bool = _f(False, "-")
     """Whether the scene has contact at all; a contact-free scene builds no collision shapes."""
-    damping_ratio: float = _f(0.01, "-", ">=0")
-    """Contact damping ratio xi in c_c = 2 xi sqrt(k_c m_c) [-] (Sec. 3.3)."""
+    damping_ratio: float = _f(0.01, "-", "[0,1)")
+    """Contact damping ratio xi in c_c = 2 xi sqrt(k_c m_c) [-] (Sec. 3.3); below 1
+    (underdamped), which the exact contact integrator assumes."""
+    self_contact: bool = _f(True, "-")
+    """Whether the net's node spheres also collide with each other (with contact on)."""
+    skin: float = _f(0.05, "m", ">0")
+    """Margin of the self-contact pair list [m]: pairs closer than their radii plus this
+    are tracked; the list is rebuilt when a node has moved 0.4 skin."""
+
+
+@dataclass(frozen=True)
+class Friction:
+    aluminium_aluminium: float = _f(0.45, "-", ">=0")
+    """Static friction coefficient mu_s between aluminium bodies (debris, corner masses) [-]."""
+    aluminium_net: float = _f(0.15, "-", ">=0")
+    """mu_s between aluminium and the net material (Technora) [-]."""
+    net_net: float = _f(0.20, "-", ">=0")
+    """mu_s between net nodes (Technora, with nylon's friction) [-]."""
+    kinetic_ratio: float = _f(1.25, "-", ">0")
+    """mu_s / mu_k [-] (Sec. 5: 1.25 for every pair)."""
+    slip: float = _f(1e-6, "s/kg", ">0")
+    """Slip coefficient s of the regularized friction (Eq. 12) [s/kg]: below the static
+    bound the friction force is -v_t / s."""
+
+
+@dataclass(frozen=True)
+class DebrisScene:
+    asset: str = _f("", "-")
+    """Debris asset: a name in assets/ (``apollo_csm``) or a path to a .toml of primitive
+    parts; empty: no debris."""
+    position: tuple = _f((0.0, 0.0, 10.0), "m", "vec3")
+    """World position of the debris' body-frame origin (its geometric centre) [m], (3,)."""
+    rotation: tuple = _f((0.0, 0.0, 0.0), "deg", "vec3")
+    """Initial orientation as a rotation vector [deg], (3,): the axis is its direction and
+    the angle its length; zero keeps the body axes on the world axes (long axis along y)."""
+    velocity: tuple = _f((0.0, 0.0, 0.0), "m/s", "vec3")
+    """Initial velocity of the centre of mass [m/s], (3,)."""
+    angular_velocity: tuple = _f((0.0, 0.0, 0.0), "deg/s", "vec3")
+    """Initial angular velocity, world frame [deg/s], (3,) (Sec. 5: 5 deg/s about z)."""
+    step: float = _f(1.0 / 240.0, "s", ">0")
+    """Interval at which the fast engine hands the net's contact impulses to the debris'
+    rigid-body dynamics in PyBullet [s] (the debris moves rigidly in between)."""
 
 
 @dataclass(frozen=True)
@@ -173,6 +213,8 @@ class Scenario:
     damping: Damping = field(default_factory=Damping)
     launch: Launch = field(default_factory=Launch)
     contact: Contact = field(default_factory=Contact)
+    friction: Friction = field(default_factory=Friction)
+    debris: DebrisScene = field(default_factory=DebrisScene)
     simulation: Simulation = field(default_factory=Simulation)
     source: str = field(default="<defaults>", compare=False)
     """Where the scene came from (file path or name), for error messages."""
@@ -226,11 +268,13 @@ def _check_value(value: Any, f: dataclasses.Field, where: str) -> Any:
 
         "(0,1]": 0 < value <= 1,
         "[0,0.5)": 0 <= value < 0.5,
+        "[0,1)": 0 <= value < 1,
         "[-90,90]": -90 <= value <= 90,
     }[check]
     if not ok:
         expect = {">0": "a positive number", ">=0": "a number >= 0", ">=2": "an integer >= 2",
                   "(0,1]": "a number in (0, 1]", "[0,0.5)": "a number in [0, 0.5)",
+                  "[0,1)": "a number in [0, 1)",
                   "[-90,90]": "a number in [-90, 90]"}[check]
         raise ScenarioError(f"{where}: expected {expect}{unit_txt}, got {value!r}")
     return int(value) if typ == "int" else float(value)

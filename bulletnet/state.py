@@ -19,6 +19,10 @@ class NetState:
     """Node orientations, unit quaternions (x, y, z, w) [-], shape (N, 4); only with bending."""
     angular_velocity: np.ndarray | None = field(default=None)
     """Node angular velocities, world frame [rad/s], shape (N, 3); only with bending."""
+    debris: np.ndarray | None = field(default=None)
+    """The debris' rigid-body state, shape (13,): centre of mass [m] (3), orientation
+    quaternion x, y, z, w (4), velocity [m/s] (3), angular velocity, world frame [rad/s] (3);
+    only in scenes with debris."""
 
     @property
     def oriented(self) -> bool:
@@ -30,4 +34,4 @@ class NetState:
             return None if a is None else a.copy()
 
         return NetState(self.time, self.position.copy(), self.velocity.copy(),
-                        dup(self.orientation), dup(self.angular_velocity))
+                        dup(self.orientation), dup(self.angular_velocity), dup(self.debris))

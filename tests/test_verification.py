@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 import bulletnet as bn
-from bulletnet import integrators
+from bulletnet import contact, integrators
 from bulletnet.engines import make_engine
 from bulletnet.forces.axial import axial_energy, axial_forces
 from bulletnet.model import NetModel
+from bulletnet.scenario import Scenario
 from bulletnet.state import NetState
 from tests.conftest import small_scene
 
@@ -44,7 +45,8 @@ def pull_apart(model: NetModel, method: str, dt: float, t_end: float, v0: float 
     for s in range(steps):
         integrators.advance(integrators.INTEGRATOR_IDS[method], False, 1, 1, pos, vel,
                             np.zeros((0, 4)), np.zeros((0, 3)), integrators.model_arrays(model),
-                            w.arrays(), np.zeros(3), np.zeros((2, 3)), dt, 1e-12)
+                            w.arrays(), np.zeros(3), np.zeros((2, 3)), dt, 1e-12,
+                            contact.setup(Scenario(), model).arrays, s * dt)
         lengths[s] = pos[1, 0] - pos[0, 0]
     return lengths, vel[1, 0] - vel[0, 0]
 

@@ -7,7 +7,8 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from .. import integrators
+from .. import contact, integrators
+from ..builder import scene_debris
 from ..model import NetModel
 from ..scenario import Scenario
 from ..state import NetState
@@ -57,6 +58,30 @@ class Engine(ABC):
         """Relative residual at which the implicit solve stops [-]."""
         self.steps = 0
         """Steps taken so far [-]."""
+        self.debris = scene_debris(scenario)
+        """The scene's debris (:class:`~bulletnet.debris.Debris`) or None."""
+        self.contact = contact.setup(scenario, model, self.debris, self.handles_contact)
+        """Contact arrays of the compiled stage (all off where this engine leaves contact
+        to PyBullet)."""
+        self._impulse_time = 0.0
+        """Simulated time since the contact impulses were last read [s]."""
+
+    handles_contact = True
+    """Whether the engine applies contact with the compiled stage (bullet: PyBullet does)."""
+
+    def contact_loads(self) -> dict:
+        """Contact since the last call, as mean forces over that interval: ``node_force``
+        (N,) debris contact normal force on each node [N], ``self_force`` (N,) node-node
+        normal force [N]; and ``first_contact`` (2,) times of the first debris and the first
+        node-node contact [s] (-1: none yet). Resets the accumulators."""
+        a = self.contact.arrays
+        span = max(self._impulse_time, 1e-300)
+        out = {"node_force": a[14] / span, "self_force": a[15] / span,
+               "first_contact": a[19].copy()}
+        a[14][:] = 0.0
+        a[15][:] = 0.0
+        self._impulse_time = 0.0
+        return out
 
     @property
     def integrator(self) -> str:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import integrators
+from ..errors import ScenarioError
 from ..state import NetState
 from .base import Engine
 
@@ -27,7 +28,12 @@ def quaternion_rate(quat: np.ndarray, omega: np.ndarray) -> np.ndarray:
 class ReferenceEngine(Engine):
     name = "reference"
 
+    handles_contact = False
+
     def __init__(self, scenario, model):
+        if scenario.contact.enabled:
+            raise ScenarioError(f"{scenario.source}: the reference engine has no contact; "
+                                "use --engine fast or bullet (or contact.enabled = false)")
         super().__init__(scenario, model)
         self._solver = None
         self._free = ~model.fixed[:, None]

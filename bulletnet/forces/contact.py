@@ -1,0 +1,259 @@
+"""Contact of the net's spheres with the debris and with each other (Eq. 6 and Eq. 12),
+compiled with numba.
+
+Normal force (Eq. 6, no adhesion): F = k_c delta + c_c d(delta)/dt while the spheres overlap
+(delta > 0) and F > 0, zero otherwise, with each pair's own k_c and c_c (Tables 5-6). At the
+paper's k_c ~ 4e9 N/m on a 2 g node the contact lasts ~2 us; no practical step resolves that,
+and an explicit penalty needs steps below 1e-6 s. So the normal motion of a node in contact
+is integrated *exactly* over each step: with the other forces on the node held at their
+step value, the relative normal coordinate obeys a linear damped oscillator while in contact
+and free flight otherwise, and :func:`normal_step` follows it through every touch-down and
+lift-off inside the step in closed form. Any step then gives the contact's own rebound
+(restitution exp(-pi xi / sqrt(1 - xi^2))), its static penetration F / k_c and its contact
+time; what a large step loses is only the variation of the *other* forces within the step.
+
+Friction (Eq. 12): regularized Coulomb. Below the static bound the tangential relative
+velocity is damped viscously with the inverse slip coefficient 1/s [N s/m] over the time in
+contact (exact exponential decay); if the impulse that takes exceeds mu_s times the normal
+impulse, the node slides and receives mu_k times the normal impulse against its slip (never
+more than stops it). It is isotropic in the tangent plane (the paper's Vortex applies it per
+component of a contact frame).
+
+The debris is a rigid body moving at constant velocity over a step; the impulses on it are
+summed (force and moment about its centre of mass) for its own dynamics.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+MAX_EVENTS = 16
+"""Touch-down / lift-off events followed within one step before the rest of the step is
+taken in the current phase [-]."""
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _first_root(c2, c1, c0, t_max):
+    """Smallest root t in (0, t_max] of c2 t^2 + c1 t + c0 = 0, or -1.0 if none."""
+    eps = 1e-13 * t_max
+    best = -1.0
+    if c2 == 0.0:
+        if c1 != 0.0:
+            t = -c0 / c1
+            if eps < t <= t_max:
+                best = t
+        return best
+    disc = c1 * c1 - 4.0 * c2 * c0
+    if disc < 0.0:
+        return -1.0
+    q = -0.5 * (c1 + math.copysign(math.sqrt(disc), c1))
+    roots = (q / c2, c0 / q if q != 0.0 else -1.0)
+    for t in roots:
+        if eps < t <= t_max and (best < 0.0 or t < best):
+            best = t
+    return best
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _oscillator(s, u, a, k, c, m, t):
+    """Gap s [m] and gap rate u [m/s] after time t [s] in contact, from (s, u): the damped
+    oscillator m s'' = m a - k s - c s' (underdamped: c^2 < 4 k m)."""
+    s_eq = m * a / k
+    sigma = c / (2.0 * m)
+    wd = math.sqrt(k / m - sigma * sigma)
+    y0 = s - s_eq
+    b = (u + sigma * y0) / wd
+    e = math.exp(-sigma * t)
+    cs, sn = math.cos(wd * t), math.sin(wd * t)
+    y = e * (y0 * cs + b * sn)
+    v = e * ((b * wd - sigma * y0) * cs - (y0 * wd + sigma * b) * sn)
+    return s_eq + y, v
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _force(s, u, k, c):
+    """Contact force -k s - c u [N] at gap s [m] (negative: overlap) and gap rate u [m/s]."""
+    return -k * s - c * u
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _lift_off(s, u, a, k, c, m, t_max):
+    """First time in (0, t_max] at which the contact force of an oscillator starting in
+    contact at (s, u) falls to zero, or -1.0 if it stays positive. The force is
+    F_eq + exp(-sigma t) R cos(wd t - phi); its minima rise monotonically towards F_eq, so
+    only the first minimum needs checking, and the root is bracketed by it and the
+    maximum (or start) before it."""
+    sigma = c / (2.0 * m)
+    wd = math.sqrt(k / m - sigma * sigma)
+    # F(t) - F_eq = exp(-sigma t) (P cos wd t + Q sin wd t)
+    s_eq = m * a / k
+    y0 = s - s_eq
+    b = (u + sigma * y0) / wd
+    p = -k * y0 - c * (b * wd - sigma * y0)
+    q = -k * b + c * (y0 * wd + sigma * b)
+    if p == 0.0 and q == 0.0:
+        return -1.0 if -k * s_eq > 0.0 else 1e-13 * t_max
+    phi = math.atan2(q, p)
+    theta = -math.atan2(sigma, wd)  # extrema at wd t - phi = theta + n pi
+    n0 = math.floor(-(theta + phi) / math.pi) + 1
+    t_a = (theta + n0 * math.pi + phi) / wd
+    t_b = t_a + math.pi / wd
+    fa = _force(*_oscillator(s, u, a, k, c, m, t_a), k, c)
+    fb = _force(*_oscillator(s, u, a, k, c, m, t_b), k, c)
+    if fa <= fb:
+        lo, hi, f_min = 0.0, t_a, fa
+    else:
+        lo, hi, f_min = t_a, t_b, fb
+    if f_min > 0.0 or lo >= t_max:
+        return -1.0
+    if _force(*_oscillator(s, u, a, k, c, m, min(hi, t_max)), k, c) > 0.0:
+        return -1.0
+    for _ in range(80):  # bisection on the monotone bracket [lo, hi]
+        mid = 0.5 * (lo + hi)
+        if _force(*_oscillator(s, u, a, k, c, m, mid), k, c) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-15 * hi:
+            break
+    return hi
+
+
+@nb.njit(cache=True, error_model="numpy")
+def normal_step(s, u, a, k, c, m, dt):
+    """Exact normal motion over one step ``dt`` [s] of a sphere against a surface: gap s [m]
+    (negative: overlap), gap rate u [m/s], other forces' acceleration along the normal
+    a [m/s^2] (constant over the step), pair stiffness k [N/m], damping c [N s/m] and
+    (reduced) mass m [kg]. Returns (s, u, time in contact [s]) at the end of the step."""
+    rem = dt
+    contact_time = 0.0
+    in_contact = s <= 0.0 and _force(s, u, k, c) > 0.0
+    for _ in range(MAX_EVENTS):
+        if rem <= 0.0:
+            break
+        if in_contact:
+            t = _lift_off(s, u, a, k, c, m, rem)
+            step = rem if t < 0.0 else t
+            s, u = _oscillator(s, u, a, k, c, m, step)
+            contact_time += step
+            rem -= step
+            in_contact = False
+            continue
+        # free flight: s + u t + a t^2 / 2; contact starts when the gap closes (from
+        # outside) or, inside the overlap, when the force turns positive
+        if s > 0.0:
+            t = _first_root(0.5 * a, u, s, rem)
+        elif s == 0.0 and (u < 0.0 or (u == 0.0 and a < 0.0)):
+            t = 0.0  # touching and pressing on: contact starts now
+        elif s < 0.0 and _force(s, u, k, c) == 0.0 and -k * u - c * a > 0.0:
+            t = 0.0  # the force is zero and rising: contact starts now
+        elif s == 0.0:
+            t = _first_root(0.5 * a, u, s, rem)
+        else:
+            t = _first_root(-0.5 * k * a, -(k * u + c * a), -(k * s + c * u), rem)
+            t_out = _first_root(0.5 * a, u, s, rem)
+            if t_out > 0.0 and (t < 0.0 or t_out < t):  # leaves the overlap first
+                u = u + a * t_out
+                s = 0.0
+                rem -= t_out
+                continue
+        if t < 0.0:
+            s, u = s + u * rem + 0.5 * a * rem * rem, u + a * rem
+            rem = 0.0
+            break
+        s, u = s + u * t + 0.5 * a * t * t, u + a * t
+        if s > 0.0:
+            s = 0.0
+        rem -= t
+        in_contact = True
+    if rem > 0.0:  # event budget spent: finish in the current phase
+        if in_contact:
+            s, u = _oscillator(s, u, a, k, c, m, rem)
+            contact_time += rem
+        else:
+            s, u = s + u * rem + 0.5 * a * rem * rem, u + a * rem
+    return s, u, contact_time
+
+
+@nb.njit(cache=True, error_model="numpy")
+def friction_impulse(speed, normal_impulse, contact_time, m, slip, mu_s, mu_k):
+    """Magnitude [N s] of the friction impulse against a tangential slip ``speed`` [m/s]
+    (Eq. 12): the viscous stick over ``contact_time`` [s] with the inverse slip coefficient
+    1 / ``slip`` [N s/m] if it stays within mu_s times ``normal_impulse`` [N s], else mu_k
+    times it, at most what stops the slip."""
+    if speed <= 0.0 or contact_time <= 0.0:
+        return 0.0
+    stick = m * speed * -math.expm1(-contact_time / (m * slip))
+    if stick <= mu_s * normal_impulse:
+        return stick
+    return min(mu_k * normal_impulse, m * speed)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def quat_matrix(q, out):
+    """Rotation matrix (3, 3) of the unit quaternion q = (x, y, z, w), into ``out``."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    out[0, 0] = 1 - 2 * (y * y + z * z)
+    out[0, 1] = 2 * (x * y - z * w)
+    out[0, 2] = 2 * (x * z + y * w)
+    out[1, 0] = 2 * (x * y + z * w)
+    out[1, 1] = 1 - 2 * (x * x + z * z)
+    out[1, 2] = 2 * (y * z - x * w)
+    out[2, 0] = 2 * (x * z - y * w)
+    out[2, 1] = 2 * (y * z + x * w)
+    out[2, 2] = 1 - 2 * (x * x + y * y)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def frustum_distance(rho, y, y0, y1, r0, r1):
+    """Signed distance [m] (negative inside) from the meridian point (rho, y) to the solid
+    frustum y0 <= y <= y1, radius r0 -> r1, and the outward normal (n_rho, n_y) there."""
+    best, n_rho, n_y, q_rho, q_y = np.inf, 0.0, 0.0, 0.0, 0.0
+    side = math.hypot(r1 - r0, y1 - y0)
+    segments = ((0.0, y0, r0, y0, 0.0, -1.0),
+                (r0, y0, r1, y1, (y1 - y0) / side, -(r1 - r0) / side),
+                (r1, y1, 0.0, y1, 0.0, 1.0))
+    for ax, ay, bx, by, nx, ny in segments:
+        ex, ey = bx - ax, by - ay
+        length2 = ex * ex + ey * ey
+        t = 0.0 if length2 == 0.0 else ((rho - ax) * ex + (y - ay) * ey) / length2
+        t = min(1.0, max(0.0, t))
+        cx, cy = ax + t * ex, ay + t * ey
+        d = math.hypot(rho - cx, y - cy)
+        if d < best:
+            best, n_rho, n_y, q_rho, q_y = d, nx, ny, cx, cy
+    inside = y0 <= y <= y1 and rho <= r0 + (r1 - r0) * (y - y0) / (y1 - y0)
+    if inside:
+        return -best, n_rho, n_y
+    if best > 1e-12:
+        n_rho, n_y = (rho - q_rho) / best, (y - q_y) / best
+    return best, n_rho, n_y
+
+
+@nb.njit(cache=True, error_model="numpy")
+def debris_distance(p, origin, rot, parts, normal):
+    """Signed distance [m] from world point p (3,) to the debris whose body frame sits at
+    ``origin`` (3,) [m] with rotation ``rot`` (3, 3); ``parts`` (K, 4) are frustums
+    (y0, y1, r0, r1) [m] along the body y axis. The outward world normal goes into
+    ``normal`` (3,). Parts are united by the smallest distance (exact outside the debris)."""
+    bx = by = bz = 0.0
+    for a in range(3):
+        d = p[a] - origin[a]
+        bx += rot[a, 0] * d
+        by += rot[a, 1] * d
+        bz += rot[a, 2] * d
+    rho = math.hypot(bx, bz)
+    ex, ez = (bx / rho, bz / rho) if rho > 1e-12 else (1.0, 0.0)
+    best, n_rho, n_y = np.inf, 0.0, 1.0
+    for k in range(parts.shape[0]):
+        d, nr, ny = frustum_distance(rho, by, parts[k, 0], parts[k, 1], parts[k, 2],
+                                     parts[k, 3])
+        if d < best:
+            best, n_rho, n_y = d, nr, ny
+    nbx, nby, nbz = n_rho * ex, n_y, n_rho * ez
+    for a in range(3):
+        normal[a] = rot[a, 0] * nbx + rot[a, 1] * nby + rot[a, 2] * nbz
+    return best
