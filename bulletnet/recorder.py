@@ -19,12 +19,31 @@ path                      shape         meaning
 /threads/shear            (T, P)        transverse (shear) force magnitude, 0 without bending [N]
 /nodes/orientation        (T, N, 4)     unit quaternions x, y, z, w [-] (bending only)
 /nodes/angular_velocity   (T, N, 3)     world frame [rad/s] (bending only)
+/debris/position          (T, 3)        world position of the body-frame origin (the
+                                        geometric centre) [m] (scenes with debris)
+/debris/orientation       (T, 4)        body-frame quaternion x, y, z, w [-]
+/debris/velocity          (T, 3)        velocity of the centre of mass [m/s]
+/debris/angular_velocity  (T, 3)        world frame [rad/s]
+/debris/mesh_vertices     (V, 3)        visual mesh, body frame [m]
+/debris/mesh_faces        (F, 3)        its triangles (vertex indices) [-]
+/contacts/count           (T,)          nodes that touched the debris in the interval
+                                        ending at the frame [-] (scenes with contact)
+/contacts/normal_force    (T,)          total normal force on the debris, mean over
+                                        that interval [N]
+/contacts/node_force      (T, N)        each node's debris normal force, mean over the
+                                        interval [N] (> 0: the node touched)
+/contacts/self_count      (T,)          nodes that touched another node in the interval [-]
 ========================  ============  =====================================================
+
+Contact forces are means over the record interval (impulse / interval): an impact lasts
+microseconds and a sample at the frame time would miss it.
 
 Root attributes: ``scenario`` (the TOML as run, overrides applied), ``engine``,
 ``integrator``, ``dt`` [s], ``record_rate`` [Hz], ``bending``, ``status`` (running /
 completed / interrupted / diverged), ``message``, ``wall_time_s`` [s], ``bulletnet_version``,
-``format_version``, ``nodes_per_side``.
+``format_version``, ``nodes_per_side``; with contact ``first_contact_s`` and
+``first_self_contact_s`` [s] (to the step; -1: none). ``/debris`` carries ``mass`` [kg],
+``inertia`` [kg m^2] (3, 3) about the centre of mass and ``center_of_mass`` [m] (body frame).
 
 The file is written as ``NAME.part`` in SWMR mode, flushed after the first frame and then
 every ``flush_interval`` seconds of wall time, and renamed to ``NAME`` when the run ends
@@ -56,7 +75,8 @@ class Recorder:
     """Append frames of a run to an HDF5 file; use as a context manager or call :meth:`close`."""
 
     def __init__(self, path: str | os.PathLike, model: NetModel, attrs: dict,
-                 oriented: bool = False, flush_interval: float = FLUSH_INTERVAL_S):
+                 oriented: bool = False, flush_interval: float = FLUSH_INTERVAL_S,
+                 debris=None, contact: bool = False):
         import h5py
 
         self.path = Path(path)
@@ -103,15 +123,52 @@ class Recorder:
             self._series["orientation"] = growing("nodes/orientation", (n, 4), "1")
             self._series["angular_velocity"] = growing("nodes/angular_velocity", (n, 3),
                                                        "rad/s")
+        self.debris = debris
+        if debris is not None:
+            from .debris import visual_mesh
+
+            vertices, faces = visual_mesh(debris)
+            static("debris/mesh_vertices", vertices, "m")
+            static("debris/mesh_faces", faces, "1")
+            group = f["debris"]
+            group.attrs["mass"] = debris.mass
+            group.attrs["inertia"] = debris.inertia
+            group.attrs["center_of_mass"] = debris.center_of_mass
+            group.attrs["units"] = "mass: kg, inertia: kg*m^2, center_of_mass: m"
+            group.attrs["name"] = debris.name
+            for name, shape, units in (("position", (3,), "m"), ("orientation", (4,), "1"),
+                                       ("velocity", (3,), "m/s"),
+                                       ("angular_velocity", (3,), "rad/s")):
+                self._series["debris_" + name] = growing("debris/" + name, shape, units)
+        if contact:
+            self._series["contact_count"] = growing("contacts/count", (), "1")
+            self._series["contact_force"] = growing("contacts/normal_force", (), "N")
+            self._series["contact_node_force"] = growing("contacts/node_force", (n,), "N")
+            self._series["contact_self_count"] = growing("contacts/self_count", (), "1")
         f.swmr_mode = True
         self._last_flush = _time.monotonic()
 
-    def append(self, state: NetState, tension: np.ndarray, shear: np.ndarray) -> None:
-        """Add one frame: the state, and thread tensions and shear forces (P,) [N]."""
+    def append(self, state: NetState, tension: np.ndarray, shear: np.ndarray,
+               contacts: dict | None = None) -> None:
+        """Add one frame: the state, thread tensions and shear forces (P,) [N], and the
+        contact forces since the last frame (``node_force``, ``self_force`` (N,) [N], as
+        :meth:`bulletnet.engines.base.Engine.contact_loads` gives them)."""
         k = self.frames
         values = {"time": state.time, "position": state.position, "velocity": state.velocity,
                   "tension": tension, "shear": shear,
                   "orientation": state.orientation, "angular_velocity": state.angular_velocity}
+        if self.debris is not None:
+            from .debris import body_origin
+
+            values.update(debris_position=body_origin(state.debris, self.debris),
+                          debris_orientation=state.debris[3:7],
+                          debris_velocity=state.debris[7:10],
+                          debris_angular_velocity=state.debris[10:13])
+        if contacts is not None:
+            values.update(contact_count=np.count_nonzero(contacts["node_force"]),
+                          contact_force=contacts["node_force"].sum(),
+                          contact_node_force=contacts["node_force"],
+                          contact_self_count=np.count_nonzero(contacts["self_force"]))
         for name, ds in self._series.items():
             ds.resize(k + 1, axis=0)
             ds[k] = values[name]

@@ -189,6 +189,8 @@ class Simulation:
     """Time step [s]; 0 picks the engine's and integrator's default."""
     record_rate: float = _f(100.0, "Hz", ">0")
     """Frames recorded per simulated second [Hz]."""
+    cg_tolerance: float = _f(1e-8, "-", ">0")
+    """Relative residual at which implicit_euler's conjugate-gradient solve stops [-]."""
     rtol: float = _f(1e-8, "-", ">0")
     """Relative tolerance of the reference engine [-]."""
     atol: float = _f(1e-10, "-", ">0")

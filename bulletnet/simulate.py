@@ -55,9 +55,12 @@ def frame_times(duration: float, record_rate: float) -> np.ndarray:
 
 def recording_bytes(scenario: Scenario, model) -> float:
     """Estimated size of a run's recording [bytes]: float64 series per frame (time, positions,
-    velocities, tensions, shear forces; orientations and angular velocities with bending)."""
+    velocities, tensions, shear forces; orientations and angular velocities with bending;
+    debris pose and velocities, and contact forces, in scenes that have them)."""
     n, p = model.node_count, model.thread_count
-    per_frame = 1 + 6 * n + 2 * p + (7 * n if scenario.bending.enabled else 0)
+    per_frame = (1 + 6 * n + 2 * p + (7 * n if scenario.bending.enabled else 0)
+                 + (13 if scenario.debris.asset else 0)
+                 + (n + 3 if scenario.contact.enabled else 0))
     frames = frame_times(scenario.scene.duration, scenario.simulation.record_rate).size
     return 8.0 * per_frame * frames
 
@@ -135,8 +138,9 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             "record_rate": scenario.simulation.record_rate,
             "bending": scenario.bending.enabled,
             "bulletnet_version": _version(),
-        }, oriented=state.oriented)
-        recorder.append(state, *engine.thread_loads(state))
+        }, oriented=state.oriented, debris=engine.debris,
+            contact=scenario.contact.enabled)
+        recorder.append(state, *engine.thread_loads(state), engine.contact_loads())
     limit = speed_limit(scenario, state)
     status, message, error = "running", "", None
     start = _time.perf_counter()
@@ -145,7 +149,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             engine.advance(state, float(t))
             _check(state, limit, engine.dt)
             if recorder is not None:
-                recorder.append(state, *engine.thread_loads(state))
+                recorder.append(state, *engine.thread_loads(state), engine.contact_loads())
             if progress is not None:
                 progress(state.time, scenario.scene.duration, _time.perf_counter() - start)
         status = "completed"
@@ -158,13 +162,16 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         if status == "running":  # an unexpected error: keep the frames, say so
             status, message = "interrupted", "stopped by an internal error"
         stats = engine.stats()
+        first = engine.contact_loads()["first_contact"]
         engine.close()
         path = None
         frames = 0
         if recorder is not None:
             frames = recorder.frames
             with _signals_deferred():
-                path = recorder.close(status, message, wall_time_s=wall,
+                contact_attrs = ({"first_contact_s": first[0], "first_self_contact_s": first[1]}
+                                 if scenario.contact.enabled else {})
+                path = recorder.close(status, message, wall_time_s=wall, **contact_attrs,
                                       **{f"stats_{k}": v for k, v in stats.items()})
     if error is not None:
         raise error

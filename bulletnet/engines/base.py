@@ -54,7 +54,7 @@ class Engine(ABC):
         """Gravitational acceleration [m/s^2], shape (3,)."""
         self.external = np.zeros((model.node_count, 3))
         """External forces besides gravity and the model's loads [N], shape (N, 3)."""
-        self.cg_tolerance = 1e-8
+        self.cg_tolerance = scenario.simulation.cg_tolerance
         """Relative residual at which the implicit solve stops [-]."""
         self.steps = 0
         """Steps taken so far [-]."""
@@ -117,8 +117,14 @@ class Engine(ABC):
         return work.tension.copy(), work.shear.copy()
 
     def stats(self) -> dict:
-        """Counters of the run so far (steps, solver iterations)."""
-        return {"steps": self.steps, "cg_iterations": int(self.work.cg_iterations[0])}
+        """Counters of the run so far (steps, solver iterations; with contact, the overlap
+        projections and their total distance [m], and the self-contact list builds)."""
+        out = {"steps": self.steps, "cg_iterations": int(self.work.cg_iterations[0])}
+        if self.contact.enabled:
+            a = self.contact.arrays
+            out.update(overlap_projections=int(a[23][0]), overlap_projected_m=float(a[23][1]),
+                       pair_list_builds=int(a[17][2]))
+        return out
 
     def close(self) -> None:  # noqa: B027 (optional hook; only bullet holds resources)
         """Release engine resources (the PyBullet world)."""

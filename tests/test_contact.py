@@ -1,0 +1,200 @@
+"""Contact (Eq. 6, Eq. 12): the exact per-step normal motion against an ODE reference and
+static equilibrium, sphere-sphere momentum, friction against Coulomb's law, the debris'
+signed distance against geometry, and the debris alone in the capture scene."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import bulletnet as bn
+from bulletnet import contact
+from bulletnet.debris import Debris, Part
+from bulletnet.forces.contact import debris_distance, normal_step
+
+K, C, M = 4.449e9, 62.0, 2.18e-3  # Table 5-6 spacecraft-inner node pair, an inner node [kg]
+
+
+def ode_rebound(u0: float, k: float, c: float, m: float):
+    """Reference: m s'' = -k s - c s' from touch-down at speed u0 < 0, integrated by DOP853
+    to lift-off (contact force -k s - c s' = 0, Eq. 6 with no adhesion): (exit speed [m/s],
+    contact time [s])."""
+    def lift(_t, y):
+        return -k * y[0] - c * y[1]
+    lift.terminal, lift.direction = True, -1
+    sol = solve_ivp(lambda _t, y: [y[1], (-k * y[0] - c * y[1]) / m], (0.0, 1e-3),
+                    [0.0, u0], method="DOP853", rtol=1e-12, atol=1e-18, events=lift,
+                    first_step=1e-10)
+    return sol.y_events[0][0][1], sol.t_events[0][0]
+
+
+@pytest.mark.parametrize("dt", [1e-5, 1e-4, 1.0 / 60.0])
+def test_rebound_matches_the_contact_ode_at_any_step(dt):
+    # Reference: the ODE of Eq. 6 integrated to lift-off; the step only carries the node
+    # before and after the ~2 us contact, so exit speed and contact time are exact.
+    u_exit, t_contact = ode_rebound(-1.0, K, C, M)
+    s, u, tc = normal_step(0.5 * dt * 1.0, -1.0, 0.0, K, C, M, dt)  # touches mid-step
+    assert u == pytest.approx(u_exit, rel=1e-9)
+    assert tc == pytest.approx(t_contact, rel=1e-9)
+    # restitution of the damped oscillator's half period, exp(-pi xi / sqrt(1 - xi^2)),
+    # differs only by the lift-off at zero force (before the overlap closes): O(xi^2)
+    xi = C / (2 * math.sqrt(K * M))
+    assert u == pytest.approx(math.exp(-math.pi * xi / math.sqrt(1 - xi**2)), abs=4 * xi**2)
+
+
+@pytest.mark.parametrize("dt", [1e-6, 1e-4, 1e-2])
+def test_pressed_sphere_settles_at_the_static_penetration(dt):
+    # Reference: static equilibrium of Eq. 6, k_c delta = m a (delta = m a / k_c).
+    a = -50.0  # [m/s^2] pressing on the surface
+    s, u = 0.0, 0.0
+    for _ in range(int(round(2e-3 / dt)) + 1):  # 2 ms: ~20 damping times 2 m / c
+        s, u, _ = normal_step(s, u, a, K, C, M, dt)
+    assert s == pytest.approx(M * a / K, rel=1e-6)
+
+
+def plane_debris() -> Debris:
+    """A 100 m wide, 1 m thick disc: its cap at body y = 0 is a plane with normal +y."""
+    part = Part("disc", -1.0, 0.0, 50.0, 50.0, 1e6)
+    return Debris(name="plane", parts=(part,), mass=1e6, center_of_mass=np.array([0, -0.5, 0]),
+                  inertia=np.eye(3) * 1e9, length=1.0, diameter=100.0)
+
+
+def contact_world(**overrides):
+    """A 2 x 2 net scene with contact (Tables 5-6 pairs of the capture materials), its model
+    and contact arrays with a static plane debris at the origin."""
+    scene = bn.load_scenario("capture", {"net.nodes_per_side": 2, **overrides})
+    model = bn.build_model(scene)
+    setup = contact.setup(scene, model, plane_debris())
+    a = setup.arrays
+    a[9][:] = (0.0, -0.5, 0.0)  # centre of mass: body origin at the world origin
+    return scene, model, setup
+
+
+def step_node_on_plane(model, setup, pos, vel, accel, dt, steps):
+    """Symplectic Euler free steps of node 0 under ``accel`` [m/s^2], then the contact stage;
+    the other nodes are far away."""
+    dv = np.zeros_like(vel)
+    for k in range(steps):
+        dv[:] = 0.0
+        dv[0] = accel * dt
+        vel += dv
+        pos += dt * vel
+        contact.debris_stage(pos, vel, dv, model.mass, model.radius, model.fixed,
+                             setup.arrays, dt, k * dt)
+
+
+def placed(model, y0: float, v0=(0.0, 0.0, 0.0)):
+    pos = np.tile([0.0, 1e3, 0.0], (model.node_count, 1)) + np.arange(model.node_count)[:, None]
+    pos[0] = (0.0, y0, 0.0)
+    vel = np.zeros_like(pos)
+    vel[0] = v0
+    return pos, vel
+
+
+def test_node_rests_on_the_debris_at_its_pair_penetration():
+    # Reference: k_c delta = m g for the spacecraft-corner node pair of Table 5.
+    scene, model, setup = contact_world()
+    k_sc = contact.pair_tables(scene, model)[0][0, contact.CLASS_OF_KIND[bn.NodeKind(
+        model.kind[0])]]
+    r, m, g = model.radius[0], model.mass[0], 9.81
+    pos, vel = placed(model, r)  # touching, at rest (dropped, it would bounce: e = 0.97)
+    step_node_on_plane(model, setup, pos, vel, np.array([0.0, -g, 0.0]), 1e-4, 100)
+    assert r - pos[0, 1] == pytest.approx(m * g / k_sc, rel=1e-6)
+    assert abs(vel[0, 1]) < 1e-9
+
+
+@pytest.mark.parametrize("push", [0.5, 0.9])
+def test_node_sticks_below_static_friction(push):
+    # Reference: Coulomb (Eq. 12): a tangential pull below mu_s N leaves the node at rest.
+    scene, model, setup = contact_world()
+    mu_s = scene.friction.aluminium_net
+    g = 9.81
+    pos, vel = placed(model, model.radius[0] - model.mass[0] * g / 4.243e9)
+    step_node_on_plane(model, setup, pos, vel, np.array([push * mu_s * g, -g, 0.0]), 1e-4,
+                       500)
+    assert abs(vel[0, 0]) < 1e-9 and abs(pos[0, 0]) < 1e-9
+
+
+def test_node_slides_with_kinetic_friction():
+    # Reference: Coulomb (Eq. 12): sliding decelerates at mu_k g; the node stops after
+    # v0 / (mu_k g) [s] having slid v0^2 / (2 mu_k g) [m].
+    scene, model, setup = contact_world()
+    mu_k = scene.friction.aluminium_net / scene.friction.kinetic_ratio
+    g, v0, dt = 9.81, 0.5, 1e-4
+    pos, vel = placed(model, model.radius[0] - model.mass[0] * g / 4.243e9, (v0, 0.0, 0.0))
+    t_stop = v0 / (mu_k * g)
+    step_node_on_plane(model, setup, pos, vel, np.array([0.0, -g, 0.0]), dt,
+                       int(0.5 * t_stop / dt))
+    assert vel[0, 0] == pytest.approx(v0 - mu_k * g * 0.5 * t_stop, rel=1e-3)
+    step_node_on_plane(model, setup, pos, vel, np.array([0.0, -g, 0.0]), dt, int(t_stop / dt))
+    assert pos[0, 0] == pytest.approx(v0**2 / (2 * mu_k * g), rel=2e-3)
+    assert abs(vel[0, 0]) < 1e-9
+
+
+def test_sphere_pair_rebound_conserves_momentum_and_restitution():
+    # References: momentum conservation (action = reaction) and the pair's contact ODE with
+    # the reduced mass m_c = m1 m2 / (m1 + m2) (Eq. 11) and the pair's k_c, c_c (Tables 5-6).
+    scene, model, setup = contact_world(**{"contact.self_contact": True})
+    a = setup.arrays
+    a[20][0] = False  # no debris: nodes only
+    i, j = 0, model.node_count - 1  # a corner node and a corner mass
+    pos = np.tile([0.0, 1e3, 0.0], (model.node_count, 1)) + 10 * np.arange(
+        model.node_count)[:, None]
+    gap, dt, speed = 1e-5, 1e-4, 1.0
+    pos[i] = (0.0, 0.0, 0.0)
+    pos[j] = (model.radius[i] + model.radius[j] + gap, 0.0, 0.0)
+    vel = np.zeros_like(pos)
+    vel[i, 0] = speed
+    p_before = model.mass @ vel
+    dv = np.zeros_like(vel)
+    for k in range(3):
+        pos += dt * vel
+        assert contact.ensure_pairs(pos - dt * vel, model.radius, a)
+        contact.self_stage(pos, vel, dv, model.mass, model.radius, a, dt, k * dt)
+    np.testing.assert_allclose(model.mass @ vel, p_before, rtol=0, atol=1e-15)
+    ci, cj = (contact.CLASS_OF_KIND[bn.NodeKind(model.kind[n])] for n in (i, j))
+    k_c, c_c = (t[ci, cj] for t in contact.pair_tables(scene, model)[:2])
+    mc = model.mass[i] * model.mass[j] / (model.mass[i] + model.mass[j])
+    u_exit, _ = ode_rebound(-speed, k_c, c_c, mc)
+    assert vel[j, 0] - vel[i, 0] == pytest.approx(u_exit, rel=1e-9)
+
+
+def test_debris_distance_of_a_frustum():
+    # Reference: geometry of the command-module frustum (y 2.3 -> 5.5, r 1.95 -> 0.42).
+    part = np.array([[2.3, 5.5, 1.95, 0.42]])
+    rot, origin, n = np.eye(3), np.zeros(3), np.empty(3)
+    assert debris_distance(np.array([0.0, 6.5, 0.0]), origin, rot, part, n) == pytest.approx(1.0)
+    np.testing.assert_allclose(n, [0, 1, 0], atol=1e-12)
+    assert debris_distance(np.array([0.0, 1.3, 1.0]), origin, rot, part, n) == pytest.approx(1.0)
+    # on the slanted side, 0.1 m out along its normal
+    normal = np.array([3.2, 1.53, 0.0]) / math.hypot(3.2, 1.53)
+    on_side = np.array([(1.95 + 0.42) / 2, (2.3 + 5.5) / 2, 0.0])
+    assert debris_distance(on_side + 0.1 * normal, origin, rot, part, n) == pytest.approx(0.1)
+    np.testing.assert_allclose(n, normal, atol=1e-12)
+    assert debris_distance(on_side - 0.1 * normal, origin, rot, part, n) == pytest.approx(-0.1)
+
+
+def test_debris_alone_keeps_its_spin_and_mass_properties(tmp_path):
+    # References: torque-free rotation about a principal axis (spin rate and angular
+    # momentum constant) over the paper's 120 s; the recorded mass and inertia are the
+    # asset's computed ones (bulletnet.debris, checked against quadrature in test_debris).
+    scene = bn.load_scenario("capture", {
+        "net.nodes_per_side": 2, "debris.position": [0.0, 0.0, 1e4],
+        "scene.duration": 120.0, "simulation.dt": 0.01, "simulation.record_rate": 1.0})
+    rec_path = bn.run(scene, tmp_path / "alone.h5").path
+    import h5py
+
+    with h5py.File(rec_path) as f:
+        w = f["debris/angular_velocity"][()]
+        inertia = f["debris"].attrs["inertia"]
+        mass = f["debris"].attrs["mass"]
+        count = f["contacts/count"][()]
+    debris = bn.load_debris("apollo_csm")
+    assert mass == debris.mass == pytest.approx(11900.0)
+    np.testing.assert_array_equal(inertia, debris.inertia)
+    np.testing.assert_allclose(w, np.tile([0, 0, math.radians(5.0)], (w.shape[0], 1)),
+                               rtol=0, atol=1e-12)
+    assert not count.any()
