@@ -72,17 +72,20 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("b", metavar="B.h5")
     compare.add_argument("--json", action="store_true")
 
-    metrics = sub.add_parser("metrics", help="mouth area, mouth diagonal, net height (Eq. 13)")
+    metrics = sub.add_parser("metrics", help="mouth area, mouth diagonal, net height (Eq. 13); "
+                             "with debris: first contact, nodes in contact, wrap, leave time, "
+                             "debris spin")
     metrics.add_argument("run", metavar="RUN.h5")
     metrics.add_argument("--json", action="store_true")
     metrics.add_argument("--every", type=_positive, default=0.1, metavar="S",
                          help="table row interval [s] (text output only)")
-    plot = sub.add_parser("plot", help="the paper's deployment figures as PNG")
+    plot = sub.add_parser("plot", help="the paper's deployment and capture figures as PNG")
     plot.add_argument("a", metavar="A.h5")
     plot.add_argument("b", metavar="B.h5", nargs="?", help="a second run to overlay")
     plot.add_argument("--out", required=True, metavar="DIR", help="folder for the PNG files")
     plot.add_argument("--times", type=float, nargs="+", metavar="S",
-                      help="mouth snapshot times [s] (default: 7 evenly spaced)")
+                      help="mouth snapshot times [s] (default: 7 evenly spaced; Fig. 11: "
+                           "9 14 27 44 82)")
     return parser
 
 
@@ -238,12 +241,28 @@ def cmd_metrics(args) -> int:
         print(json.dumps(doc))
         return 0
     print(f"{rec.path}: {rec.status}, {rec.time.size} frames")
-    print("   time [s]  mouth area [m^2]  mouth diagonal [m]  net height [m]")
+    capture = doc.get("capture")
+    if capture:
+        def when(t):
+            return "never" if t is None else f"{t:.3f} s"
+        spin = capture["spin"]
+        print(f"first contact with the debris: {when(capture['first_contact_s'])}; "
+              f"first net self-contact: {when(capture['first_self_contact_s'])}")
+        print(f"net left the debris: {when(capture['leave_s'])}; at most "
+              f"{capture['max_nodes_in_contact']} nodes in contact; wrap at most "
+              f"{capture['max_wrap']:.3f} (at {capture['max_wrap_time_s']:.1f} s)")
+        print("debris angular velocity [deg/s]: "
+              f"{' '.join(f'{w:.4f}' for w in spin['initial_deg_s'])} -> "
+              f"{' '.join(f'{w:.4f}' for w in spin['final_deg_s'])}")
+    print("   time [s]  mouth area [m^2]  mouth diagonal [m]  net height [m]"
+          + ("  contacts [-]  wrap [-]" if capture else ""))
     next_t = 0.0
     for k, t in enumerate(doc["time_s"]):
         if t + 1e-9 >= next_t or k == len(doc["time_s"]) - 1:
+            extra = (f" {capture['nodes_in_contact'][k]:13d} {capture['wrap'][k]:9.3f}"
+                     if capture else "")
             print(f"{t:11.3f} {doc['mouth_area_m2'][k]:17.5g} {doc['mouth_diagonal_m'][k]:19.5g} "
-                  f"{doc['net_height_m'][k]:15.5g}")
+                  f"{doc['net_height_m'][k]:15.5g}{extra}")
             next_t = t + args.every
     return 0
 

@@ -7,15 +7,29 @@
   Ns) minus the mean z of the four net corners (Figs. 4b, 7a);
 - RMSE per node (Eq. 14) and node-averaged RMSE over time (Eq. 15) between two recordings on
   their common sample times (Tables 2-4, Figs. 5, 8).
+
+Capture (Sec. 5), from recordings with debris and contact:
+
+- first-contact time (to the step, from the run), nodes in contact over time;
+- wrap: the fraction of all directions from the debris' centre of mass along which a ray
+  meets the net's surface (its mesh quads, two triangles each). A flat 20 m net 10 m away
+  covers 0.17; a net wrapped all round, 1. Rays: a Fibonacci sphere of ``directions``;
+- leave time: the end of the last frame interval with debris contact, when no contact follows
+  for at least ``LEAVE_QUIET_S`` to the end of the run;
+- the debris' spin before and after: angular velocity [deg/s] at the first and last frame.
 """
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
 from .errors import RecordingError
 from .recording import Recording
 from .topology import center_nodes, net_corners, perimeter
+
+LEAVE_QUIET_S = 5.0
+"""Contact-free time [s] that must follow the last contact for the net to count as gone."""
 
 
 def mouth(rec: Recording) -> np.ndarray:
@@ -44,14 +58,18 @@ def net_height(rec: Recording) -> np.ndarray:
 
 
 def summary(rec: Recording) -> dict:
-    """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys."""
-    return {
+    """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys;
+    with the capture measures under ``capture`` for recordings with debris and contact."""
+    doc = {
         "time_s": rec.time.tolist(),
         "mouth_area_m2": mouth_area(rec).tolist(),
         "mouth_diagonal_m": mouth_diagonal(rec).tolist(),
         "net_height_m": net_height(rec).tolist(),
         "status": rec.status,
     }
+    if rec.debris is not None and rec.contacts is not None:
+        doc["capture"] = capture_summary(rec)
+    return doc
 
 
 def common_times(a: Recording, b: Recording, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
@@ -86,4 +104,140 @@ def rmse(a: Recording, b: Recording) -> dict:
         "samples": int(ia.size), "time": a.time[ia],
         "pos": pos, "vel": vel,
         "pos_t": np.sqrt(dx.mean(axis=1)), "vel_t": np.sqrt(dv.mean(axis=1)),
+    }
+
+
+def _require(rec: Recording, group: str) -> dict:
+    data = getattr(rec, group)
+    if data is None:
+        raise RecordingError(f"{rec.path}: no /{group} in this recording (a scene without "
+                             f"{'debris' if group == 'debris' else 'contact'})")
+    return data
+
+
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors v (..., 3) by unit quaternions q (..., 4) (x, y, z, w)."""
+    u, w = q[..., :3], q[..., 3:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def debris_axis(rec: Recording) -> np.ndarray:
+    """The debris' long (body y) axis in the world [-], shape (T, 3)."""
+    q = _require(rec, "debris")["orientation"]
+    return _rotate(q, np.broadcast_to([0.0, 1.0, 0.0], (q.shape[0], 3)))
+
+
+def debris_center_of_mass(rec: Recording) -> np.ndarray:
+    """World position of the debris' centre of mass [m], shape (T, 3)."""
+    d = _require(rec, "debris")
+    com = np.asarray(d["attrs"]["center_of_mass"], dtype=float)
+    return d["position"] + _rotate(d["orientation"], np.broadcast_to(com, d["position"].shape))
+
+
+def first_contact_time(rec: Recording) -> float | None:
+    """Time of the first node-debris contact [s] (to the step), or None."""
+    _require(rec, "contacts")
+    t = float(rec.attrs.get("first_contact_s", -1.0))
+    if t >= 0:
+        return t
+    hit = np.nonzero(rec.contacts["count"] > 0)[0]
+    return float(rec.time[hit[0]]) if hit.size else None
+
+
+def nodes_in_contact(rec: Recording) -> np.ndarray:
+    """Nodes that touched the debris in each frame's interval [-], shape (T,)."""
+    return _require(rec, "contacts")["count"]
+
+
+def leave_time(rec: Recording) -> float | None:
+    """When the net left the debris [s]: the end of the last interval with contact, if at
+    least :data:`LEAVE_QUIET_S` without contact follow to the end of the run; else None."""
+    hit = np.nonzero(nodes_in_contact(rec) > 0)[0]
+    if not hit.size or rec.time[-1] - rec.time[hit[-1]] < LEAVE_QUIET_S:
+        return None
+    return float(rec.time[hit[-1]])
+
+
+def fibonacci_sphere(count: int) -> np.ndarray:
+    """``count`` near-uniform unit vectors, shape (count, 3)."""
+    k = np.arange(count) + 0.5
+    z = 1.0 - 2.0 * k / count
+    phi = np.pi * (1.0 + 5.0**0.5) * k
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def net_triangles(ns: int) -> np.ndarray:
+    """The net surface as triangles of node indices, two per mesh quad, shape (2 (Ns-1)^2, 3)."""
+    r, c = np.divmod(np.arange((ns - 1) ** 2), ns - 1)
+    a = r * ns + c
+    quads = np.stack([a, a + 1, a + ns + 1, a + ns], axis=1)
+    return np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+
+
+def wrap(rec: Recording, directions: int = 400) -> np.ndarray:
+    """Fraction of directions from the debris' centre of mass whose ray meets the net's
+    surface [-], shape (T,)."""
+    rays = fibonacci_sphere(directions)
+    tri = net_triangles(rec.nodes_per_side)
+    origin = debris_center_of_mass(rec)
+    return np.array([_covered(rec.position[k] - origin[k], tri, rays)
+                     for k in range(rec.time.size)])
+
+
+@nb.njit(cache=True)
+def _covered(points, tri, rays):
+    """Fraction of ``rays`` (R, 3) from the origin that cross a triangle ``tri`` (F, 3) of
+    ``points`` (N, 3) (Moller-Trumbore)."""
+    hits = 0
+    for r in range(rays.shape[0]):
+        dx, dy, dz = rays[r, 0], rays[r, 1], rays[r, 2]
+        for f in range(tri.shape[0]):
+            i, j, k = tri[f, 0], tri[f, 1], tri[f, 2]
+            ax, ay, az = points[i, 0], points[i, 1], points[i, 2]
+            e1x, e1y, e1z = points[j, 0] - ax, points[j, 1] - ay, points[j, 2] - az
+            e2x, e2y, e2z = points[k, 0] - ax, points[k, 1] - ay, points[k, 2] - az
+            px, py, pz = dy * e2z - dz * e2y, dz * e2x - dx * e2z, dx * e2y - dy * e2x
+            det = px * e1x + py * e1y + pz * e1z
+            if abs(det) < 1e-15:
+                continue
+            u = -(ax * px + ay * py + az * pz) / det
+            if u < 0.0 or u > 1.0:
+                continue
+            qx, qy, qz = -(ay * e1z - az * e1y), -(az * e1x - ax * e1z), -(ax * e1y - ay * e1x)
+            v = (dx * qx + dy * qy + dz * qz) / det
+            if v < 0.0 or u + v > 1.0:
+                continue
+            if (e2x * qx + e2y * qy + e2z * qz) / det > 0.0:
+                hits += 1
+                break
+    return hits / rays.shape[0]
+
+
+def spin(rec: Recording) -> dict:
+    """The debris' angular velocity [deg/s] at the first and last frame, (3,) each, and the
+    change of its magnitude [deg/s]."""
+    w = np.degrees(_require(rec, "debris")["angular_velocity"])
+    return {"initial_deg_s": w[0].tolist(), "final_deg_s": w[-1].tolist(),
+            "magnitude_change_deg_s": float(np.linalg.norm(w[-1]) - np.linalg.norm(w[0]))}
+
+
+def capture_summary(rec: Recording) -> dict:
+    """Capture measures (JSON-ready, units in the keys): first-contact and leave times,
+    peak nodes in contact and wrap, the debris' spin change, and the time series."""
+    count = nodes_in_contact(rec)
+    wrapped = wrap(rec)
+    k = int(np.argmax(wrapped))
+    return {
+        "first_contact_s": first_contact_time(rec),
+        "first_self_contact_s": (float(rec.attrs["first_self_contact_s"])
+                                 if rec.attrs.get("first_self_contact_s", -1) >= 0 else None),
+        "leave_s": leave_time(rec),
+        "max_nodes_in_contact": int(count.max()),
+        "max_wrap": float(wrapped[k]), "max_wrap_time_s": float(rec.time[k]),
+        "spin": spin(rec),
+        "nodes_in_contact": count.astype(int).tolist(),
+        "normal_force_N": rec.contacts["normal_force"].tolist(),
+        "wrap": wrapped.tolist(),
     }

@@ -5,7 +5,10 @@
 - ``diagonal.png``: mouth diagonal (Fig. 7b); ``area.png``: mouth area;
 - ``rmse.png``: node-averaged RMSE over time, Eq. 15, position and velocity (Figs. 5, 8);
   only with two recordings;
-- ``corner_thread.png``: tension and shear in a corner thread on a log axis (Fig. 9).
+- ``corner_thread.png``: tension and shear in a corner thread on a log axis (Fig. 9);
+- with debris: ``mouth.png`` has one panel per time with the debris' long axis (grey, its
+  x-y projection through the body origin; Fig. 11), and ``capture.png`` plots nodes in
+  contact and the wrap measure over time.
 """
 
 from __future__ import annotations
@@ -58,24 +61,13 @@ def plot_recordings(a: Recording, b: Recording | None, out_dir: str | Path,
         plt.close(fig)
         written.append(path)
 
-    # mouth shapes
     times = times or default_times(a)
-    fig, ax = plt.subplots(figsize=(6.5, 6))
-    colours = plt.cm.viridis(np.linspace(0, 0.9, len(times)))
-    for rec, style in zip(recs, styles, strict=False):
-        poly = metrics.mouth(rec)
-        for t, colour in zip(times, colours, strict=True):
-            k = int(np.argmin(np.abs(rec.time - t)))
-            xy = np.vstack([poly[k], poly[k][:1]])
-            ax.plot(xy[:, 0], xy[:, 1], style, color=colour,
-                    label=f"t = {rec.time[k]:.2f} s" if rec is a else None)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_title("Mouth shape" + (f"\nsolid: {_label(a)}; dashed: {_label(b)}" if b else ""),
-                 fontsize=9)
-    ax.legend(fontsize=8)
-    save(fig, "mouth.png")
+    if a.debris is not None:
+        save(_capture_mouths(plt, recs, styles, times), "mouth.png")
+        if a.contacts is not None:
+            save(_capture_series(plt, recs, styles), "capture.png")
+    else:
+        save(_mouths(plt, recs, styles, times, b), "mouth.png")
 
     for name, fn, ylabel in (("height.png", metrics.net_height, "net height [m] (Eq. 13)"),
                              ("diagonal.png", metrics.mouth_diagonal, "mouth diagonal [m]"),
@@ -119,3 +111,62 @@ def plot_recordings(a: Recording, b: Recording | None, out_dir: str | Path,
     ax.legend(fontsize=8)
     save(fig, "corner_thread.png")
     return written
+
+
+def _mouths(plt, recs, styles, times, b):
+    """Mouth shapes at ``times`` in one panel (Figs. 4a, 6)."""
+    a = recs[0]
+    fig, ax = plt.subplots(figsize=(6.5, 6))
+    colours = plt.cm.viridis(np.linspace(0, 0.9, len(times)))
+    for rec, style in zip(recs, styles, strict=False):
+        poly = metrics.mouth(rec)
+        for t, colour in zip(times, colours, strict=True):
+            k = int(np.argmin(np.abs(rec.time - t)))
+            xy = np.vstack([poly[k], poly[k][:1]])
+            ax.plot(xy[:, 0], xy[:, 1], style, color=colour,
+                    label=f"t = {rec.time[k]:.2f} s" if rec is a else None)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title("Mouth shape" + (f"\nsolid: {_label(a)}; dashed: {_label(b)}" if b else ""),
+                 fontsize=9)
+    ax.legend(fontsize=8)
+    return fig
+
+
+def _capture_mouths(plt, recs, styles, times):
+    """One panel per time: each run's mouth and the debris' long axis (Fig. 11)."""
+    fig, axes = plt.subplots(1, len(times), figsize=(3.2 * len(times), 3.6), squeeze=False)
+    for ax, t in zip(axes[0], times, strict=True):
+        for rec, style, colour in zip(recs, styles, ("C0", "C3"), strict=False):
+            k = int(np.argmin(np.abs(rec.time - t)))
+            xy = metrics.mouth(rec)[k]
+            xy = np.vstack([xy, xy[:1]])
+            ax.plot(xy[:, 0], xy[:, 1], style, color=colour, lw=1, label=_label(rec))
+            centre = rec.debris["position"][k, :2]
+            half = 0.5 * np.ptp(rec.debris["mesh_vertices"][:, 1])
+            axis = metrics.debris_axis(rec)[k, :2] * half
+            ax.plot(*np.stack([centre - axis, centre + axis]).T, "-", color="0.6", lw=5,
+                    alpha=0.6, solid_capstyle="butt")
+        ax.set_title(f"t = {t:g} s", fontsize=9)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+    axes[0, 0].set_ylabel("y [m]")
+    axes[0, 0].legend(fontsize=6, loc="lower left")
+    fig.suptitle("Mouth shape and the debris' long axis (grey)", fontsize=10)
+    return fig
+
+
+def _capture_series(plt, recs, styles):
+    """Nodes in contact with the debris and the wrap measure over time."""
+    fig, axes = plt.subplots(2, 1, figsize=(6.5, 5.5), sharex=True)
+    for rec, style in zip(recs, styles, strict=False):
+        axes[0].plot(rec.time, metrics.nodes_in_contact(rec), style, label=_label(rec))
+        axes[1].plot(rec.time, metrics.wrap(rec), style, label=_label(rec))
+    axes[0].set_ylabel("nodes touching the debris [-]")
+    axes[1].set_ylabel("wrap [-]\n(fraction of directions\ncovered by the net)")
+    axes[1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    return fig

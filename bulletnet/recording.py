@@ -39,6 +39,14 @@ class Recording:
     """Thread end nodes [-], shape (P, 2)."""
     rest_length: np.ndarray
     """Thread rest lengths [m], shape (P,)."""
+    debris: dict | None = None
+    """Scenes with debris: ``position`` (T, 3) of the body-frame origin [m], ``orientation``
+    (T, 4) quaternions x, y, z, w, ``velocity`` (T, 3) [m/s], ``angular_velocity`` (T, 3)
+    [rad/s], ``mesh_vertices`` (V, 3) [m] and ``mesh_faces`` (F, 3) in the body frame, and
+    ``attrs`` (mass [kg], inertia [kg m^2], center_of_mass [m], name); else None."""
+    contacts: dict | None = None
+    """Scenes with contact: ``count`` (T,), ``normal_force`` (T,) [N], ``node_force``
+    (T, N) [N], ``self_count`` (T,) (see :mod:`bulletnet.recorder`); else None."""
 
     @property
     def nodes_per_side(self) -> int:
@@ -94,9 +102,21 @@ def open_recording(path: str | os.PathLike) -> Recording:
                 kind=f["nodes/kind"][()],
                 pairs=f["threads/pairs"][()],
                 rest_length=f["threads/rest_length"][()],
+                debris=_group(f, "debris", frames),
+                contacts=_group(f, "contacts", frames),
             )
         except (KeyError, OSError) as exc:
             raise RecordingError(f"{p}: damaged recording ({exc})") from None
     if rec.time.shape[0] == 0:
         raise RecordingError(f"{p}: recording holds no frames")
     return rec
+
+
+def _group(f, name: str, frames: int) -> dict | None:
+    """A group's datasets (time series cut to ``frames``) and its attributes, or None."""
+    if name not in f:
+        return None
+    out = {"attrs": dict(f[name].attrs)}
+    for key, ds in f[name].items():
+        out[key] = ds[:frames] if ds.maxshape[0] is None else ds[()]
+    return out
