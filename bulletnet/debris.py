@@ -209,12 +209,19 @@ def visual_mesh(debris: Debris, sections: int = 48) -> tuple[np.ndarray, np.ndar
 
 
 def collision_shape(client, debris: Debris, sections: int = 48) -> int:
-    """A PyBullet compound collision shape: one convex hull per part, in the body frame."""
+    """A PyBullet compound collision shape: one convex hull per part, in the body frame
+    (PyBullet builds compounds of meshes from files only: OBJ files in a temporary folder)."""
+    import tempfile
+
     import pybullet
 
-    vertices = [part_mesh(p, sections).vertices.tolist() for p in debris.parts]
-    return client.createCollisionShapeArray(
-        shapeTypes=[pybullet.GEOM_MESH] * len(vertices), vertices=vertices)
+    with tempfile.TemporaryDirectory() as folder:
+        names = []
+        for k, part in enumerate(debris.parts):
+            names.append(str(Path(folder) / f"part{k}.obj"))
+            part_mesh(part, sections).export(names[-1])
+        return client.createCollisionShapeArray(
+            shapeTypes=[pybullet.GEOM_MESH] * len(names), fileNames=names)
 
 
 class RigidDebris:

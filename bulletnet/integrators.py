@@ -11,8 +11,11 @@ same semi-implicit update), so both engines run the same method.
 - ``implicit_euler``: linearly implicit (one Newton step of) backward Euler on the axial
   threads, (M + dt C + dt^2 K) dv = dt F - dt^2 K v, solved by block-Jacobi preconditioned
   conjugate gradients, then shifted by the uniform velocity that makes the step conserve
-  momentum exactly (the threads' blocks vanish on it). Bending forces enter F explicitly.
-  First order, stable on the damped threads.
+  momentum exactly (the threads' blocks vanish on it). Bending forces enter F explicitly;
+  the node rotations take dw = h tau / (J + h C_g + h^2 K_g) with C_g, K_g the Gershgorin
+  bounds of their angular damping and stiffness (:func:`rotational_bounds`; h the bending
+  interval): a diagonally implicit step, stable at any step. First order, stable on the
+  damped threads.
 
 Clamped nodes (``model.fixed``) never move or turn.
 """
@@ -32,6 +35,20 @@ IMPLICIT_EULER = 1
 INTEGRATOR_IDS = {"symplectic_euler": SYMPLECTIC_EULER, "implicit_euler": IMPLICIT_EULER}
 
 
+def rotational_bounds(model: NetModel) -> tuple[np.ndarray, np.ndarray]:
+    """Gershgorin bounds of each node's row of the bending system's angular damping and
+    stiffness: 2 sum over its threads of (c_b + c_t l^2) [N m s/rad] and of (k_b + k_t l^2)
+    [N m/rad], each shape (N,). They bound the eigenvalues of the coupled rotations."""
+    stiffness = model.bending_stiffness + model.transverse_stiffness * model.rest_length**2
+    damping = model.bending_damping + model.transverse_damping * model.rest_length**2
+    k_sum = np.zeros(model.node_count)
+    c_sum = np.zeros(model.node_count)
+    for end in (0, 1):
+        np.add.at(k_sum, model.pairs[:, end], stiffness)
+        np.add.at(c_sum, model.pairs[:, end], damping)
+    return 2.0 * c_sum, 2.0 * k_sum
+
+
 def model_arrays(model: NetModel) -> tuple:
     """The model's arrays in the order the compiled kernels unpack them."""
     m = model
@@ -39,7 +56,7 @@ def model_arrays(model: NetModel) -> tuple:
     return (m.mass, m.pairs, m.rest_length, m.axial_stiffness, m.axial_damping,
             m.transverse_stiffness, m.transverse_damping, m.bending_stiffness,
             m.bending_damping, m.inertia, m.rest_axis, m.fixed, m.load, m.bilateral, inv_mass,
-            m.radius)
+            m.radius, *rotational_bounds(m))
 
 
 class Workspace:
@@ -86,7 +103,7 @@ def external_forces(pos, vel, quat, omega, model, work, gravity, external, bendi
     w > 0 also w times the bending forces, and w times the bending torques into work's torque
     (zeroed otherwise), and the threads' shear [N] into work's shear."""
     (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
-     bilateral, inv_mass, radius) = model
+     bilateral, inv_mass, radius, rot_c, rot_k) = model
     force, torque, shear, bend = work[0], work[1], work[3], work[11]
     for i in range(pos.shape[0]):
         for a in range(3):
@@ -181,7 +198,7 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     work's dv (which holds the previous increment on entry: the CG warm start). Work's force
     must hold the non-axial forces on entry (:func:`external_forces`)."""
     (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
-     bilateral, inv_mass, radius) = model
+     bilateral, inv_mass, radius, rot_c, rot_k) = model
     (force, torque, tension, shear, along, across, axis, dv, cg, block_inv, iterations,
      bend, step_count) = work
     n = pos.shape[0]
@@ -305,8 +322,8 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
     same rotation)."""
     n = pos.shape[0]
     mass, inertia, fixed = model[0], model[9], model[11]
+    radius, rot_c, rot_k = model[15], model[16], model[17]
     torque, dv = work[1], work[7]
-    radius = model[15]
     flags = contact[20]
     touching = flags[0] or flags[1]
     pending = 0  # steps of rotation not yet applied to quat
@@ -328,10 +345,14 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
             contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t0 + step * dt)
         if bending:
             if weight > 0.0:
+                # implicit_euler: the rotations' own damping and stiffness implicit on the
+                # diagonal, scaled by their Gershgorin bounds (stable at any step)
+                h = dt * weight if method == IMPLICIT_EULER else 0.0
                 for i in range(n):
                     if not fixed[i]:
+                        scale = dt / (inertia[i] + h * rot_c[i] + h * h * rot_k[i])
                         for a in range(3):
-                            omega[i, a] += dt * torque[i, a] / inertia[i]
+                            omega[i, a] += scale * torque[i, a]
             pending += 1
         taken += 1
     if pending > 0:

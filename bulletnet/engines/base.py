@@ -18,13 +18,7 @@ def bending_interval(model: NetModel, dt: float, margin: float = 0.3) -> int:
     """Steps between bending impulses: the largest n with n dt <= margin / max_i(rate_i), rate_i
     the fastest rotational time scale of node i — the damping rate sum(c_b + c_t l^2) / J_i or
     the frequency sqrt(sum(k_b + k_t l^2) / J_i) over its threads (clamped nodes excluded)."""
-    stiffness = model.bending_stiffness + model.transverse_stiffness * model.rest_length**2
-    damping = model.bending_damping + model.transverse_damping * model.rest_length**2
-    k_sum = np.zeros(model.node_count)
-    c_sum = np.zeros(model.node_count)
-    for end in (0, 1):
-        np.add.at(k_sum, model.pairs[:, end], stiffness)
-        np.add.at(c_sum, model.pairs[:, end], damping)
+    c_sum, k_sum = (0.5 * b for b in integrators.rotational_bounds(model))
     free = ~model.fixed
     rate = np.maximum(c_sum / model.inertia, np.sqrt(k_sum / model.inertia))[free].max()
     if rate <= 0:

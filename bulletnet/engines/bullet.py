@@ -9,6 +9,13 @@ not PyBullet constraints: a point-to-point constraint is bilateral and cannot go
 
 Bodies are created without collision shapes when the scene has no contact, with zero linear
 and angular damping, sleeping disabled, and a sphere's inertia 2 m r^2 / 5.
+
+With contact, PyBullet does it all: node spheres and the debris (a compound of convex hulls
+of its primitives, a dynamic body) collide in PyBullet's constraint solver, which treats a
+contact's stiffness and damping implicitly (through its error reduction and constraint force
+mixing), with per-body values fitted to the paper's pairs (:mod:`.bullet_materials`) and one
+friction coefficient per pair (static = kinetic). The contact forces PyBullet reports are
+recorded like the fast engine's.
 """
 
 from __future__ import annotations
@@ -20,12 +27,17 @@ import sys
 import numpy as np
 
 from .. import integrators
+from ..contact import CLASS_OF_KIND
+from ..debris import collision_shape, create_body, read_state
+from ..model import NodeKind
 from ..state import NetState
 from .base import Engine
+from .bullet_materials import fit
 
 
 class BulletEngine(Engine):
     name = "bullet"
+    handles_contact = False
 
     def __init__(self, scenario, model):
         super().__init__(scenario, model)
@@ -39,7 +51,12 @@ class BulletEngine(Engine):
         c.setGravity(0.0, 0.0, 0.0)  # gravity is in the forces we apply (one implementation)
         c.setPhysicsEngineParameter(numSubSteps=0, deterministicOverlappingPairs=1)
         self.bodies = []
+        self.debris_body = None
         self._step_set = None
+        self.materials = (fit(scenario, model, self.debris is not None)
+                          if scenario.contact.enabled else None)
+        """Per-body contact values fitted to the pair tables (with contact)."""
+        self._torque_scale = None
 
     def _create(self, state: NetState) -> None:
         c, m = self.client, self.model
@@ -59,7 +76,32 @@ class BulletEngine(Engine):
             if m.fixed[i]:  # a clamp is a rigid joint: a PyBullet fixed constraint to the world
                 c.createConstraint(body, -1, -1, -1, self.pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
                                    state.position[i].tolist())
+            if self.materials is not None:
+                self._set_material(body, CLASS_OF_KIND[NodeKind(m.kind[i])])
             self.bodies.append(body)
+        if self.debris is not None:
+            from ..debris import body_origin
+
+            shape = (collision_shape(c, self.debris) if self.scenario.contact.enabled
+                     else -1)
+            self.debris_body = create_body(c, self.debris, body_origin(state.debris, self.debris),
+                                           state.debris[3:7], state.debris[7:10],
+                                           state.debris[10:13], collision_shape=shape)
+            if self.materials is not None:
+                self._set_material(self.debris_body, 0)
+        if self.scenario.contact.enabled and not self.scenario.contact.self_contact:
+            for body in self.bodies:  # nodes (group 1) collide with the debris (group 2) only
+                c.setCollisionFilterGroupMask(body, -1, 1, 2)
+            if self.debris_body is not None:
+                c.setCollisionFilterGroupMask(self.debris_body, -1, 2, 1)
+        self._node_of_body = {body: i for i, body in enumerate(self.bodies)}
+
+    def _set_material(self, body: int, cls: int) -> None:
+        mat = self.materials
+        self.client.changeDynamics(body, -1, contactStiffness=float(mat.stiffness[cls]),
+                                   contactDamping=float(mat.damping[cls]),
+                                   lateralFriction=float(mat.friction[cls]), restitution=0.0,
+                                   rollingFriction=0.0, spinningFriction=0.0)
 
     def _read(self, state: NetState) -> None:
         pose, twist = self.client.getBasePositionAndOrientation, self.client.getBaseVelocity
@@ -87,6 +129,7 @@ class BulletEngine(Engine):
         apply, apply_torque = c.applyExternalForce, c.applyExternalTorque
         frame = self.pb.WORLD_FRAME
         mass_over_dt = self.model.mass[:, None] / dt
+        first_step = self.steps
         for _ in range(steps):
             quat, omega = self.rotations(state)
             weight = integrators.bending_weight(self.bending, self.bending_every, w.arrays())
@@ -98,14 +141,45 @@ class BulletEngine(Engine):
                                   strict=True):
                 apply(body, -1, f, x, frame)
             if weight > 0.0:
-                for body, tau in zip(self.bodies, w.torque.tolist(), strict=True):
+                torque = w.torque
+                if method == integrators.IMPLICIT_EULER:  # as the fast engine's rotations
+                    h = dt * weight
+                    torque = torque * (self.model.inertia / (
+                        self.model.inertia + h * self.arrays[16] + h * h * self.arrays[17])
+                                       )[:, None]
+                for body, tau in zip(self.bodies, torque.tolist(), strict=True):
                     apply_torque(body, -1, tau, frame)
             c.stepSimulation()
             self.steps += 1
+            if self.materials is not None:
+                self._collect_contacts(dt, state.time + (self.steps - first_step) * dt)
             self._read(state)
             if not np.isfinite(state.position).all():
                 break
+        if self.debris_body is not None:
+            read_state(c, self.debris_body, state.debris)
+        self._impulse_time += interval
         state.time = t_end
+
+    def _collect_contacts(self, dt: float, t: float) -> None:
+        """Add the step's PyBullet contact impulses (normal force x dt) to the per-node
+        accumulators: debris contacts to contact[14], node pairs to contact[15]."""
+        a = self.contact.arrays
+        node = self._node_of_body
+        for point in self.client.getContactPoints():
+            body_a, body_b, force = point[1], point[2], point[9]
+            if force <= 0.0:
+                continue
+            if self.debris_body in (body_a, body_b):
+                other = body_b if body_a == self.debris_body else body_a
+                a[14][node[other]] += force * dt
+                if a[19][0] < 0:
+                    a[19][0] = t
+            else:
+                a[15][node[body_a]] += force * dt
+                a[15][node[body_b]] += force * dt
+                if a[19][1] < 0:
+                    a[19][1] = t
 
     def close(self) -> None:
         if self.client is not None:
