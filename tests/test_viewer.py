@@ -12,14 +12,8 @@ import bulletnet as bn
 from bulletnet.viewer import load_replay, viser_server
 from bulletnet.viewer.panel import Panel
 from bulletnet.viewer.replay import SLACK, thread_colours
-from tests.conftest import small_scene
 
 pytest.importorskip("viser")
-
-
-def run_small(path, **overrides):
-    bn.run(small_scene(**{"scene.duration": 0.3, **overrides}), path)
-    return path
 
 
 def add_capture_groups(path, spin=2.0):
@@ -47,17 +41,9 @@ def add_capture_groups(path, spin=2.0):
     return path
 
 
-@pytest.fixture(scope="module")
-def runs(tmp_path_factory):
-    """A plain run at 100 Hz, a bending run at 50 Hz, and a capture-like copy of the plain."""
-    d = tmp_path_factory.mktemp("viewer")
-    plain = run_small(d / "plain.h5")
-    bending = run_small(d / "bending.h5", **{"bending.enabled": True,
-                                             "simulation.record_rate": 50.0})
-    capture = d / "capture.h5"
-    capture.write_bytes(plain.read_bytes())
-    add_capture_groups(capture)
-    return {"plain": plain, "bending": bending, "capture": capture}
+@pytest.fixture
+def runs(viewer_runs):
+    return viewer_runs
 
 
 def test_timeline_shows_each_recordings_last_frame_at_or_before(runs):
