@@ -16,24 +16,26 @@ from bulletnet.viewer.replay import SLACK, thread_colours
 pytest.importorskip("viser")
 
 
-def add_capture_groups(path, spin=2.0):
-    """Turn a deployment recording into a capture-like one (the capture scene's layout): a
-    box debris 0.5 m above the net's centroid spinning about z at ``spin`` [rad/s], and the
-    nodes within 0.6 m of it in contact with 1 N each."""
+def add_capture_groups(path, mesh=None, at=None, lift=0.5, reach=0.6, spin=2.0):
+    """Turn a deployment recording into a capture-like one (the capture scene's layout): the
+    debris ``mesh`` (default a 1.2 x 0.8 x 0.5 m box) at ``at`` [m] (default ``lift`` [m]
+    above the net's centroid), spinning about z at ``spin`` [rad/s], and the nodes within
+    ``reach`` [m] of its origin in contact with 1 N each."""
     import trimesh
 
-    box = trimesh.creation.box((1.2, 0.8, 0.5))
+    mesh = mesh if mesh is not None else trimesh.creation.box((1.2, 0.8, 0.5))
     with h5py.File(path, "r+") as f:
         t = f["time"][()]
         x = f["nodes/position"][()]
-        centre = x.mean(axis=1) + [0.0, 0.0, 0.5]
+        centre = x.mean(axis=1) + [0.0, 0.0, lift] if at is None else np.tile(at, (t.size, 1))
         half = 0.5 * spin * t  # quaternion x, y, z, w of a rotation spin t about z
         xyzw = np.stack([0 * t, 0 * t, np.sin(half), np.cos(half)], axis=1)
-        touching = np.linalg.norm(x - centre[:, None, :], axis=2) < 0.6
+        touching = np.linalg.norm(x - centre[:, None, :], axis=2) < reach
         node_force = touching * 1.0
         for name, data, units in (
                 ("debris/position", centre, "m"), ("debris/orientation", xyzw, "1"),
-                ("debris/mesh_vertices", box.vertices, "m"), ("debris/mesh_faces", box.faces, "1"),
+                ("debris/mesh_vertices", mesh.vertices, "m"),
+                ("debris/mesh_faces", mesh.faces, "1"),
                 ("contacts/count", touching.sum(axis=1), "1"),
                 ("contacts/normal_force", node_force.sum(axis=1), "N"),
                 ("contacts/node_force", node_force, "N")):
@@ -142,6 +144,15 @@ def test_a_new_frame_sends_only_what_moved(runs):
         sent.clear()
         viewer.goto(5)
         assert sent == []
+        # hidden parts are not sent, and are brought up to date when shown again
+        viewer._show("trails", False)
+        sent.clear()
+        viewer.goto(9)
+        assert not any(getattr(m, "name", "").endswith("/trails") for m in sent)
+        viewer._show("trails", True)
+        layer = viewer.layers[0]
+        last_mass = layer.track.position[replay.index[0, 9], layer.track.corner_masses[-1]]
+        assert layer.trails.points[-1, 1] == pytest.approx(last_mass)
         assert set(viewer.controls) == {"nodes", "threads", "trails", "debris",
                                         "thread colour", "contacts"}
 

@@ -18,7 +18,7 @@ from ..recording import Recording, open_recording
 
 PALETTE = ((31, 119, 180), (230, 97, 1), (44, 160, 44), (148, 103, 189))
 """Colour of each recording [RGB 0-255], in the order given: blue, orange, green, purple."""
-SLACK = (175, 175, 175)
+SLACK = (205, 205, 205)
 """Colour of a slack thread (tension 0) [RGB 0-255]."""
 CONTACT = (255, 0, 200)
 """Colour of a node touching the debris [RGB 0-255]."""
@@ -210,7 +210,7 @@ def thread_colours(force: np.ndarray, scale: float, colour: tuple[int, int, int]
     ``colour`` at small force to its dark shade at ``scale`` [N] and above, by the square root
     of force / scale (tensions span decades); slack (0) grey. uint8 RGB, shape (P, 2, 3)."""
     base = np.asarray(colour, dtype=np.float64)
-    light, dark = 0.55 * base + 0.45 * 255.0, 0.5 * base
+    light, dark = 0.8 * base + 0.2 * 255.0, 0.45 * base
     ratio = np.sqrt(np.clip(force / scale, 0.0, 1.0))[:, None]
     rgb = light + ratio * (dark - light)
     rgb[force <= 0] = SLACK

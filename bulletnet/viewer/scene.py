@@ -54,8 +54,8 @@ class TrackLayer:
         if track.debris is not None:
             d = track.debris
             self.debris = scene.add_mesh_simple(
-                f"{name}/debris", d.vertices, d.faces, color=(150, 150, 160), opacity=0.85,
-                flat_shading=True, side="double", wxyz=d.wxyz[0], position=d.position[0])
+                f"{name}/debris", d.vertices, d.faces, color=(190, 190, 200), opacity=0.85,
+                flat_shading=True, wxyz=d.wxyz[0], position=d.position[0])
 
     def _thread_points(self, j: int) -> np.ndarray:
         return self.track.position[j][self.track.pairs]
@@ -71,23 +71,27 @@ class TrackLayer:
         return np.stack([path[:-1], path[1:]], axis=2).reshape(-1, 2, 3)
 
     def show(self, j: int) -> None:
-        """Draw frame ``j`` of this recording (nothing is sent if it is already shown)."""
+        """Draw frame ``j`` of this recording: nothing is sent if it is already shown, nor for
+        hidden parts (they are brought up to date when shown again)."""
         if j == self.frame:
             return
         self.frame = j
         track = self.track
-        if track.contacts is not None:
-            touching = tuple(np.nonzero(track.contacts.node_force[j] > 0)[0])
-            if touching != self._contact_key:
-                self._contact_key = touching
-                for nodes, _, handle in self.groups.values():
-                    handle.batched_colors = node_colours(track, j, nodes)
-        for nodes, _, handle in self.groups.values():
-            handle.batched_positions = track.position[j, nodes]
-        self.threads.points = self._thread_points(j)
-        self.threads.colors = self._thread_colours(j)
-        self.trails.points = self._trail_points(j)
-        if self.debris is not None:
+        if self.groups["nodes"][2].visible:
+            if track.contacts is not None:
+                touching = tuple(np.nonzero(track.contacts.node_force[j] > 0)[0])
+                if touching != self._contact_key:
+                    self._contact_key = touching
+                    for nodes, _, handle in self.groups.values():
+                        handle.batched_colors = node_colours(track, j, nodes)
+            for nodes, _, handle in self.groups.values():
+                handle.batched_positions = track.position[j, nodes]
+        if self.threads.visible:
+            self.threads.points = self._thread_points(j)
+            self.threads.colors = self._thread_colours(j)
+        if self.trails.visible:
+            self.trails.points = self._trail_points(j)
+        if self.debris is not None and self.debris.visible:
             self.debris.position = track.debris.position[j]
             self.debris.wxyz = track.debris.wxyz[j]
 
@@ -106,6 +110,9 @@ class TrackLayer:
                    "debris": [self.debris] if self.debris is not None else []}[part]
         for handle in handles:
             handle.visible = visible
+        if visible:
+            frame, self.frame = self.frame, -1
+            self.show(frame)
 
 
 def build_scene(server, replay: Replay) -> list[TrackLayer]:
@@ -116,6 +123,7 @@ def build_scene(server, replay: Replay) -> list[TrackLayer]:
     # and a software-rendered browser draws the scene 3x faster without them
     scene.configure_default_lights(cast_shadow=False)
     scene.configure_environment_map(hdri=None)
+    scene.add_light_ambient("/ambient", intensity=1.5)
     points = [t.position.reshape(-1, 3) for t in replay.tracks]
     points += [t.debris.position for t in replay.tracks if t.debris is not None]
     lo, hi = np.min([p.min(axis=0) for p in points], axis=0), \
@@ -124,7 +132,7 @@ def build_scene(server, replay: Replay) -> list[TrackLayer]:
     scene.add_grid("/grid", width=2 * size, height=2 * size, cell_size=size / 10,
                    section_size=size / 2, position=(centre[0], centre[1], lo[2]))
     server.initial_camera.look_at = tuple(centre)
-    server.initial_camera.position = tuple(centre + size * np.array([1.1, -1.1, 0.8]))
+    server.initial_camera.position = tuple(centre + size * np.array([0.8, -0.8, 0.6]))
     layers = [TrackLayer(scene, replay, r) for r in range(len(replay.tracks))]
     for layer in layers:
         layer.show(0)

@@ -80,8 +80,9 @@ class LiveViewer:
         return "  \n".join(lines)
 
     def _show(self, part: str, visible: bool) -> None:
-        for layer in self.layers:
-            layer.set_visible(part, visible)
+        with self._lock:
+            for layer in self.layers:
+                layer.set_visible(part, visible)
 
     def _colour_by(self, quantity: str) -> None:
         with self._lock:
