@@ -7,9 +7,9 @@ docs/figures/viewer_capture.png, taken with headless Chromium (as the browser te
     python docs/viewer_figures.py plain.h5 bending.h5 net.h5
 
 The capture scene does not record its debris yet, so this script copies the capture net's run
-and adds a synthetic debris in the capture recording layout: the Apollo CSM mesh fixed 10 m
-above the launch point (the scene's placement), spinning at 5 deg/s about z, with the nodes
-within 6 m of its centre marked in contact.
+and adds a synthetic debris in the capture recording layout: the Apollo CSM mesh fixed 7 m
+above the launch point, spinning at 5 deg/s about z, with the nodes within 6 m of its centre
+marked in contact (an illustration of the layout, not a capture).
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ def main(plain: str, bending: str, net: str) -> None:
     import trimesh
 
     csm = trimesh.util.concatenate([part_mesh(p) for p in load_debris("apollo_csm").parts])
-    add_capture_groups(capture, mesh=csm, at=(0.0, 0.0, 10.0), reach=6.0,
+    add_capture_groups(capture, mesh=csm, at=(0.0, 0.0, 7.0), reach=6.0,
                        spin=np.radians(5.0))
     screenshot([capture], 6.0, OUT / "viewer_capture.png", [2.0, 4.0, 6.0])
 
