@@ -183,6 +183,10 @@ def test_view_bad_input_is_one_line(runs, tmp_path, capsys):
     with h5py.File(broken, "r+") as f:
         del f["debris/mesh_faces"]
         f["debris/mesh_faces"] = np.array([[0, 1, 99]])
+    no_pose = tmp_path / "no_pose.h5"
+    no_pose.write_bytes(runs["capture"].read_bytes())
+    with h5py.File(no_pose, "r+") as f:
+        del f["debris/orientation"]
     existing = tmp_path / "exists.html"
     existing.write_text("x")
     cases = [([str(tmp_path / "missing.h5")], "no such recording"),
@@ -190,6 +194,7 @@ def test_view_bad_input_is_one_line(runs, tmp_path, capsys):
              ([str(runs["plain"]), "--port", "70000"], "--port"),
              ([str(runs["plain"])] * 5, "1 to 4 recordings"),
              ([str(broken), "--html", str(tmp_path / "b.html")], "not a triangle mesh"),
+             ([str(no_pose)], "damaged capture groups"),
              ([str(runs["plain"]), "--html", str(existing)], "--force"),
              ([str(runs["plain"]), "--html", str(tmp_path / "no" / "x.html")], "no such folder")]
     for args, message in cases:

@@ -90,6 +90,7 @@ class Panel:
             for name, unit, y in (("area", "mouth area [m^2]", top),
                                   ("height", "net height [m]", top + PLOT_HEIGHT + 26))]
         self.height = top + 2 * PLOT_HEIGHT + 44
+        self._still = "".join(self._static())
 
     def _static(self) -> list[str]:
         """Everything that does not move: axes, curves against time, snapshots, legend."""
@@ -157,4 +158,4 @@ class Panel:
             moving.append(f'<{tag} id="{ident}" {_attrs(attrs)}>{text}</{tag}>')
         return (f'<svg id="bulletnet-mouth" xmlns="http://www.w3.org/2000/svg" '
                 f'width="{WIDTH}" height="{self.height}" viewBox="0 0 {WIDTH} {self.height}" '
-                'font-family="sans-serif">' + "".join(self._static() + moving) + "</svg>")
+                'font-family="sans-serif">' + self._still + "".join(moving) + "</svg>")

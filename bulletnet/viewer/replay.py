@@ -144,27 +144,35 @@ def read_capture(rec: Recording, frames: np.ndarray) -> tuple[DebrisTrack | None
     """The capture groups of ``rec``'s file at the given frame indices; None where absent."""
     import h5py
 
+    try:
+        with h5py.File(rec.path, "r", swmr=rec.status == "running") as f:
+            return _capture_groups(f, rec, frames)
+    except KeyError as exc:
+        raise RecordingError(f"{rec.path}: damaged capture groups ({exc})") from None
+
+
+def _capture_groups(f, rec: Recording, frames: np.ndarray):
+    """:func:`read_capture` on the open file ``f``."""
     t, n = rec.time.size, rec.position.shape[1]
-    with h5py.File(rec.path, "r", swmr=rec.status == "running") as f:
-        debris = contacts = None
-        if "debris" in f:
-            pos = _dataset(f, "debris/position", (t, 3), rec.path)
-            xyzw = _dataset(f, "debris/orientation", (t, 4), rec.path)
-            vertices = f["debris/mesh_vertices"][()]
-            faces = f["debris/mesh_faces"][()]
-            if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 \
-                    or faces.shape[1] != 3 or faces.size == 0 \
-                    or faces.min() < 0 or faces.max() >= vertices.shape[0]:
-                raise RecordingError(f"{rec.path}: /debris mesh is not a triangle mesh "
-                                     f"(vertices {vertices.shape}, faces {faces.shape})")
-            debris = DebrisTrack(position=pos[frames], wxyz=np.roll(xyzw[frames], 1, axis=1),
-                                 vertices=vertices.astype(np.float32),
-                                 faces=faces.astype(np.uint32))
-        if "contacts" in f:
-            contacts = ContactTrack(
-                count=_dataset(f, "contacts/count", (t,), rec.path)[frames],
-                normal_force=_dataset(f, "contacts/normal_force", (t,), rec.path)[frames],
-                node_force=_dataset(f, "contacts/node_force", (t, n), rec.path)[frames])
+    debris = contacts = None
+    if "debris" in f:
+        pos = _dataset(f, "debris/position", (t, 3), rec.path)
+        xyzw = _dataset(f, "debris/orientation", (t, 4), rec.path)
+        vertices = f["debris/mesh_vertices"][()]
+        faces = f["debris/mesh_faces"][()]
+        if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 \
+                or faces.shape[1] != 3 or faces.size == 0 \
+                or faces.min() < 0 or faces.max() >= vertices.shape[0]:
+            raise RecordingError(f"{rec.path}: /debris mesh is not a triangle mesh "
+                                 f"(vertices {vertices.shape}, faces {faces.shape})")
+        debris = DebrisTrack(position=pos[frames], wxyz=np.roll(xyzw[frames], 1, axis=1),
+                             vertices=vertices.astype(np.float32),
+                             faces=faces.astype(np.uint32))
+    if "contacts" in f:
+        contacts = ContactTrack(
+            count=_dataset(f, "contacts/count", (t,), rec.path)[frames],
+            normal_force=_dataset(f, "contacts/normal_force", (t,), rec.path)[frames],
+            node_force=_dataset(f, "contacts/node_force", (t, n), rec.path)[frames])
     return debris, contacts
 
 
