@@ -1,4 +1,4 @@
-"""The ``bulletnet`` command line: run, params, compare, metrics, plot.
+"""The ``bulletnet`` command line: run, params, compare, metrics, plot, view.
 
 Errors are one line on stderr: exit code 2 for bad input, 3 for a diverged run, 130 for an
 interrupted one."""
@@ -12,7 +12,7 @@ import signal
 import sys
 import time
 
-from .errors import BulletnetError
+from .errors import BulletnetError, ScenarioError
 
 SI_HELP = "all quantities in SI units; see `bulletnet params SCENE`"
 
@@ -86,6 +86,20 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("--times", type=float, nargs="+", metavar="S",
                       help="mouth snapshot times [s] (default: 7 evenly spaced; Fig. 11: "
                            "9 14 27 44 82)")
+
+    view = sub.add_parser("view", help="replay recordings in a browser: a local viser "
+                          "server, or a self-contained HTML file")
+    view.add_argument("runs", nargs="+", metavar="RUN.h5",
+                      help="recordings to overlay in sync, each in its own colour")
+    view.add_argument("--port", type=int, default=8080, metavar="N",
+                      help="local server port; the next free one if taken, 0 for any")
+    view.add_argument("--html", metavar="OUT.html", help="write a self-contained replay "
+                      "instead of serving (index.html beside it lists the folder's replays)")
+    view.add_argument("--every", type=int, default=1, metavar="N",
+                      help="show every N-th recorded frame (and the last)")
+    view.add_argument("--snapshots", type=float, nargs="+", metavar="S",
+                      help="mouth snapshot times [s] (default: 7 evenly spaced)")
+    view.add_argument("--force", action="store_true", help="overwrite an existing --html")
     return parser
 
 
@@ -278,6 +292,24 @@ def cmd_plot(args) -> int:
     return 0
 
 
+def cmd_view(args) -> int:
+    from .viewer import export_html, load_replay, serve
+
+    if not 0 <= args.port <= 65535:
+        raise ScenarioError(f"--port must be 0 to 65535, got {args.port}")
+    replay = load_replay(args.runs, args.every)
+    snapshots = args.snapshots or replay.default_snapshots()
+    if args.html:
+        print(export_html(replay, args.html, snapshots, force=args.force))
+        return 0
+    try:
+        serve(replay, args.port, snapshots, announce=lambda url: print(
+            f"bulletnet: replay at {url} (Ctrl-C to stop)", flush=True))
+    except KeyboardInterrupt:
+        print("bulletnet: viewer stopped", file=sys.stderr)
+    return 0
+
+
 def _terminate(signum, frame):
     raise KeyboardInterrupt
 
@@ -285,7 +317,7 @@ def _terminate(signum, frame):
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": cmd_run, "params": cmd_params, "compare": cmd_compare,
-               "metrics": cmd_metrics, "plot": cmd_plot}[args.command]
+               "metrics": cmd_metrics, "plot": cmd_plot, "view": cmd_view}[args.command]
     signal.signal(signal.SIGTERM, _terminate)
     try:
         return handler(args)

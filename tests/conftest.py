@@ -17,3 +17,20 @@ def small_scene(**overrides):
 @pytest.fixture
 def scene():
     return small_scene()
+
+
+@pytest.fixture(scope="session")
+def viewer_runs(tmp_path_factory):
+    """Recordings for the replay tests: a plain run at 100 Hz, a bending run at 50 Hz, and a
+    capture-like copy of the plain one (tests/test_viewer.py: add_capture_groups)."""
+    from tests.test_viewer import add_capture_groups
+
+    d = tmp_path_factory.mktemp("viewer")
+    plain, bending = d / "plain.h5", d / "bending.h5"
+    bn.run(small_scene(**{"scene.duration": 0.3}), plain)
+    bn.run(small_scene(**{"scene.duration": 0.3, "bending.enabled": True,
+                          "simulation.record_rate": 50.0}), bending)
+    capture = d / "capture.h5"
+    capture.write_bytes(plain.read_bytes())
+    add_capture_groups(capture)
+    return {"plain": plain, "bending": bending, "capture": capture, "dir": d}

@@ -1,0 +1,97 @@
+"""Self-contained HTML replays: the scene recorded frame by frame through viser's scene
+serializer into viser's own single-file client, plus the mouth panel (``web/overlay.js``,
+``web/overlay.css``), and an ``index.html`` beside them listing every replay in the folder.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from html import escape, unescape
+from pathlib import Path
+
+from ..errors import ScenarioError
+from . import viser_server
+from .panel import Panel
+from .replay import Replay
+from .scene import build_scene
+
+WEB = Path(__file__).parent / "web"
+"""What the HTML export adds to viser's client: the panel's script and style, the index."""
+META = "bulletnet-replay"
+"""Name of the ``<meta>`` tag that marks a file as a replay (its content: JSON summary)."""
+
+
+def scene_html(replay: Replay) -> str:
+    """viser's client with the replay's scene embedded; playback time = simulated time."""
+    with viser_server() as server:
+        layers = build_scene(server, replay)
+        serializer = server.get_scene_serializer()
+        for k in range(1, replay.time.size):
+            serializer.insert_sleep(float(replay.time[k] - replay.time[k - 1]))
+            for layer, j in zip(layers, replay.index[:, k], strict=True):
+                layer.show(int(j))
+        return serializer.as_html()
+
+
+def panel_data(replay: Replay, panel: Panel) -> dict:
+    """What ``overlay.js`` needs: times from the start [s], the panel, its changes by frame."""
+    first = panel.updates(0)
+    fields = [(ident, attr) for ident, attrs in first.items() for attr in attrs]
+    values = []
+    for k in range(replay.time.size):
+        update = panel.updates(k)
+        values.append([update[i][a] for i, a in fields])
+    return {"time": (replay.time - replay.time[0]).round(9).tolist(), "svg": panel.svg(0),
+            "fields": fields, "values": values}
+
+
+def export_html(replay: Replay, out: str | Path, snapshots: list[float],
+                force: bool = False) -> Path:
+    """Write the replay to ``out`` and refresh ``index.html`` beside it; return ``out``."""
+    out = Path(out)
+    if out.name == "index.html":
+        raise ScenarioError(f"{out}: index.html is the folder's list of replays; "
+                             "choose another name")
+    if out.exists() and not force:
+        raise ScenarioError(f"{out}: exists; pass --force to overwrite it")
+    if not out.parent.is_dir():
+        raise ScenarioError(f"{out.parent}: no such folder")
+    summary = {"recordings": [t.label for t in replay.tracks],
+               "duration_s": round(float(replay.time[-1] - replay.time[0]), 6),
+               "frames": int(replay.time.size), "written": time.strftime("%Y-%m-%d %H:%M")}
+    title = " + ".join(t.label for t in replay.tracks)
+    head = (f'<meta name="{META}" content="{escape(json.dumps(summary))}">'
+            f"<title>bulletnet: {escape(title)}</title>"
+            f"<style>{(WEB / 'overlay.css').read_text()}</style>")
+    data = json.dumps(panel_data(replay, Panel(replay, snapshots)), separators=(",", ":"))
+    data = data.replace("</", "<\\/")  # no "</script>" inside the script
+    body = (f"<script>window.__BULLETNET__={data};</script>"
+            f"<script>{(WEB / 'overlay.js').read_text()}</script>")
+    page = scene_html(replay).replace("<title>Viser</title>", "", 1)
+    page = page.replace("</head>", head + "</head>", 1).replace("</body>", body + "</body>", 1)
+    out.write_text(page, encoding="utf-8")
+    write_index(out.parent)
+    return out
+
+
+def write_index(folder: Path) -> Path:
+    """``folder/index.html``: a table of the replays in ``folder``, newest first."""
+    pattern = re.compile(rf'<meta name="{META}" content="([^"]*)">')
+    rows = []
+    for path in sorted(folder.glob("*.html"), key=lambda p: p.stat().st_mtime, reverse=True):
+        if path.name == "index.html":
+            continue
+        match = pattern.search(path.read_text(encoding="utf-8", errors="replace"))
+        if match is None:
+            continue
+        info = json.loads(unescape(match.group(1)))
+        rows.append(f'<tr><td><a href="{escape(path.name)}">{escape(path.stem)}</a></td>'
+                    f"<td>{escape(', '.join(info['recordings']))}</td>"
+                    f"<td>{info['duration_s']:g}</td><td>{info['frames']}</td>"
+                    f"<td>{escape(info['written'])}</td></tr>")
+    index = folder / "index.html"
+    index.write_text((WEB / "index.html").read_text().replace("<!-- REPLAYS -->",
+                                                               "\n".join(rows)))
+    return index

@@ -1,0 +1,223 @@
+"""What a replay shows, as arrays: recordings decimated onto one shared timeline, the capture
+groups (debris pose and mesh, contacts) when a recording has them, the paper's measures from
+:mod:`bulletnet.metrics`, and the colours. No viser here: the live server and the HTML export
+both draw from a :class:`Replay`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import metrics
+from ..errors import RecordingError, ScenarioError
+from ..model import NodeKind
+from ..recording import Recording, open_recording
+
+PALETTE = ((31, 119, 180), (230, 97, 1), (44, 160, 44), (148, 103, 189))
+"""Colour of each recording [RGB 0-255], in the order given: blue, orange, green, purple."""
+SLACK = (205, 205, 205)
+"""Colour of a slack thread (tension 0) [RGB 0-255]."""
+CONTACT = (255, 0, 200)
+"""Colour of a node touching the debris [RGB 0-255]."""
+SATURATION_PERCENTILE = 99.0
+"""Thread colours saturate at this percentile of the positive forces of all recordings [%]."""
+
+
+@dataclass(frozen=True)
+class DebrisTrack:
+    """The debris body over time (``/debris/*``)."""
+
+    position: np.ndarray
+    """World position of the body-frame origin [m], shape (T, 3)."""
+    wxyz: np.ndarray
+    """Orientation of the body frame, quaternion w, x, y, z [-], shape (T, 4)."""
+    vertices: np.ndarray
+    """Visual mesh vertices in the body frame [m], shape (V, 3)."""
+    faces: np.ndarray
+    """Visual mesh triangles, vertex indices [-], shape (F, 3)."""
+
+
+@dataclass(frozen=True)
+class ContactTrack:
+    """Net-debris contacts over time (``/contacts/*``)."""
+
+    count: np.ndarray
+    """Nodes touching the debris [-], shape (T,)."""
+    normal_force: np.ndarray
+    """Total normal contact force [N], shape (T,)."""
+    node_force: np.ndarray
+    """Normal contact force on each node [N], shape (T, N)."""
+
+
+@dataclass(frozen=True)
+class Track:
+    """One recording, decimated: the frames a replay draws."""
+
+    label: str
+    """File stem and bending on/off, for legends."""
+    colour: tuple[int, int, int]
+    """This recording's colour [RGB 0-255]."""
+    time: np.ndarray
+    """Sample times [s], shape (T,)."""
+    position: np.ndarray
+    """Node positions [m], shape (T, N, 3)."""
+    tension: np.ndarray
+    """Thread tensions, 0 when slack [N], shape (T, P)."""
+    shear: np.ndarray | None
+    """Thread shear force magnitudes [N], shape (T, P); None without bending."""
+    radius: np.ndarray
+    """Node radii [m], shape (N,)."""
+    kind: np.ndarray
+    """Node kinds (:class:`bulletnet.model.NodeKind`) [-], shape (N,)."""
+    pairs: np.ndarray
+    """Thread end nodes [-], shape (P, 2)."""
+    mouth: np.ndarray
+    """Mouth polygon, x-y of the perimeter nodes [m], shape (T, 4 Ns - 4, 2)."""
+    area: np.ndarray
+    """Mouth area [m^2], shape (T,)."""
+    height: np.ndarray
+    """Net height, Eq. 13 [m], shape (T,)."""
+    debris: DebrisTrack | None
+    contacts: ContactTrack | None
+
+    @property
+    def corner_masses(self) -> np.ndarray:
+        """Indices of the corner masses [-], shape (4,)."""
+        return np.nonzero(self.kind == NodeKind.CORNER_MASS)[0]
+
+    @property
+    def net_nodes(self) -> np.ndarray:
+        """Indices of every node but the corner masses [-], shape (N - 4,)."""
+        return np.nonzero(self.kind != NodeKind.CORNER_MASS)[0]
+
+
+@dataclass(frozen=True)
+class Replay:
+    """Recordings on one timeline: master time k shows frame ``index[r, k]`` of track r."""
+
+    tracks: tuple[Track, ...]
+    time: np.ndarray
+    """Master sample times, the union of the tracks' [s], shape (K,)."""
+    index: np.ndarray
+    """Frame of each track at each master time: its last frame at or before it [-],
+    shape (R, K)."""
+    tension_scale: float
+    """Tension at which thread colours saturate [N]."""
+    shear_scale: float | None
+    """Shear force at which thread colours saturate [N]; None when no track has bending."""
+
+    @property
+    def has_debris(self) -> bool:
+        return any(t.debris is not None for t in self.tracks)
+
+    @property
+    def has_contacts(self) -> bool:
+        return any(t.contacts is not None for t in self.tracks)
+
+    @property
+    def has_bending(self) -> bool:
+        return self.shear_scale is not None
+
+    def default_snapshots(self, count: int = 7) -> list[float]:
+        """``count`` evenly spaced snapshot times over the replay, as ``bulletnet plot``'s
+        [s]."""
+        return np.linspace(self.time[0], self.time[-1], count).tolist()
+
+    def frame_at(self, t: float) -> int:
+        """Master frame shown at time ``t`` [s]: the last at or before it [-]."""
+        k = int(np.searchsorted(self.time, t + 1e-9, side="right")) - 1
+        return min(max(k, 0), self.time.size - 1)
+
+
+def read_capture(rec: Recording, frames: np.ndarray) -> tuple[DebrisTrack | None,
+                                                              ContactTrack | None]:
+    """The capture groups of ``rec`` at the given frame indices; None where absent."""
+    debris = contacts = None
+    t = rec.time.size
+    if rec.debris is not None:
+        d = rec.debris
+        try:
+            pos, xyzw = d["position"], d["orientation"]
+            vertices, faces = d["mesh_vertices"], d["mesh_faces"]
+        except KeyError as exc:
+            raise RecordingError(f"{rec.path}: damaged capture groups ({exc})") from None
+        if pos.shape != (t, 3) or xyzw.shape != (t, 4):
+            raise RecordingError(f"{rec.path}: /debris pose has shapes {pos.shape}, "
+                                 f"{xyzw.shape}; expected ({t}, 3), ({t}, 4)")
+        if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 \
+                or faces.shape[1] != 3 or faces.size == 0 \
+                or faces.min() < 0 or faces.max() >= vertices.shape[0]:
+            raise RecordingError(f"{rec.path}: /debris mesh is not a triangle mesh "
+                                 f"(vertices {vertices.shape}, faces {faces.shape})")
+        debris = DebrisTrack(position=pos[frames], wxyz=np.roll(xyzw[frames], 1, axis=1),
+                             vertices=vertices.astype(np.float32),
+                             faces=faces.astype(np.uint32))
+    if rec.contacts is not None:
+        c = rec.contacts
+        try:
+            contacts = ContactTrack(count=c["count"][frames],
+                                    normal_force=c["normal_force"][frames],
+                                    node_force=c["node_force"][frames])
+        except (KeyError, IndexError) as exc:
+            raise RecordingError(f"{rec.path}: damaged capture groups ({exc})") from None
+    return debris, contacts
+
+
+def make_track(rec: Recording, colour: tuple[int, int, int], every: int) -> Track:
+    """``rec`` decimated to every ``every``-th frame (its last frame always kept)."""
+    frames = np.unique(np.append(np.arange(0, rec.time.size, every), rec.time.size - 1))
+    bending = rec.orientation is not None
+    debris, contacts = read_capture(rec, frames)
+    return Track(
+        label=f"{rec.path.stem} ({'with' if bending else 'no'} bending)",
+        colour=colour, time=rec.time[frames], position=rec.position[frames],
+        tension=rec.tension[frames], shear=rec.shear[frames] if bending else None,
+        radius=rec.radius, kind=rec.kind, pairs=rec.pairs,
+        mouth=metrics.mouth(rec)[frames], area=metrics.mouth_area(rec)[frames],
+        height=metrics.net_height(rec)[frames], debris=debris, contacts=contacts)
+
+
+def _scale(values: list[np.ndarray]) -> float:
+    positive = np.concatenate([v[v > 0] for v in values])
+    return float(np.percentile(positive, SATURATION_PERCENTILE)) if positive.size else 1.0
+
+
+def load_replay(paths: list, every: int = 1) -> Replay:
+    """Open the recordings (:func:`bulletnet.recording.open_recording`) and put every
+    ``every``-th frame of each on one timeline."""
+    if not 1 <= len(paths) <= len(PALETTE):
+        raise ScenarioError(f"a replay shows 1 to {len(PALETTE)} recordings, got {len(paths)}")
+    if every < 1:
+        raise ScenarioError(f"--every must be a whole number >= 1, got {every}")
+    tracks = tuple(make_track(open_recording(p), c, every)
+                   for p, c in zip(paths, PALETTE, strict=False))
+    time = np.unique(np.concatenate([t.time for t in tracks]))
+    index = np.array([np.clip(np.searchsorted(t.time, time + 1e-9, side="right") - 1,
+                              0, t.time.size - 1) for t in tracks])
+    shears = [t.shear for t in tracks if t.shear is not None]
+    return Replay(tracks=tracks, time=time, index=index,
+                  tension_scale=_scale([t.tension for t in tracks]),
+                  shear_scale=_scale(shears) if shears else None)
+
+
+def thread_colours(force: np.ndarray, scale: float, colour: tuple[int, int, int]) -> np.ndarray:
+    """Per-vertex colours of threads carrying ``force`` [N], shape (P,): from a light tint of
+    ``colour`` at small force to its dark shade at ``scale`` [N] and above, by the square root
+    of force / scale (tensions span decades); slack (0) grey. uint8 RGB, shape (P, 2, 3)."""
+    base = np.asarray(colour, dtype=np.float64)
+    light, dark = 0.8 * base + 0.2 * 255.0, 0.45 * base
+    ratio = np.sqrt(np.clip(force / scale, 0.0, 1.0))[:, None]
+    rgb = light + ratio * (dark - light)
+    rgb[force <= 0] = SLACK
+    return np.repeat(np.rint(rgb).astype(np.uint8)[:, None, :], 2, axis=1)
+
+
+def node_colours(track: Track, frame: int, nodes: np.ndarray) -> np.ndarray:
+    """Colours of ``nodes`` at ``frame``: the track's colour, :data:`CONTACT` where the node
+    touches the debris. uint8 RGB, shape (len(nodes), 3)."""
+    rgb = np.tile(np.asarray(track.colour, dtype=np.uint8), (nodes.size, 1))
+    if track.contacts is not None:
+        rgb[track.contacts.node_force[frame, nodes] > 0] = CONTACT
+    return rgb

@@ -1,0 +1,65 @@
+// The mouth panel of a bulletnet HTML replay, kept in step with viser's playback bar.
+// window.__BULLETNET__ (written by `bulletnet view --html`) holds:
+//   time:   master sample times from the start of the replay [s], shape (K,)
+//   svg:    the panel at frame 0 (bulletnet/viewer/panel.py draws it)
+//   fields: [element id, attribute] pairs that change from frame to frame
+//   values: values[k][i] is fields[i] at frame k
+(function () {
+  "use strict";
+  const data = window.__BULLETNET__;
+  const box = document.createElement("div");
+  box.id = "bulletnet-panel";
+  box.innerHTML =
+    '<div class="bulletnet-head"><b>Mouth</b>' +
+    '<span><button id="bulletnet-prev" title="previous frame">&#9664;</button>' +
+    '<button id="bulletnet-next" title="next frame">&#9654;</button>' +
+    '<button id="bulletnet-fold" title="hide or show the panel">&#8211;</button></span></div>' +
+    '<div class="bulletnet-body">' + data.svg + "</div>";
+  document.body.appendChild(box);
+
+  const elements = data.fields.map(([id]) => document.getElementById(id));
+  let shown = 0;
+
+  function frameAt(t) {  // last frame at or before t
+    let lo = 0, hi = data.time.length - 1;
+    while (lo < hi) {
+      const mid = (lo + hi + 1) >> 1;
+      if (data.time[mid] <= t + 1e-9) lo = mid; else hi = mid - 1;
+    }
+    return lo;
+  }
+
+  function draw(k) {
+    const row = data.values[k];
+    data.fields.forEach(([, attr], i) => {
+      if (attr === "text") elements[i].textContent = row[i];
+      else elements[i].setAttribute(attr, row[i]);
+    });
+    shown = k;
+  }
+
+  function playbackSlider() {
+    return document.querySelector('[role="slider"]');
+  }
+
+  function seek(k) {
+    // The playback bar's time field takes a typed time [s] (and pauses playback).
+    const input = document.querySelector("input.mantine-NumberInput-input");
+    if (!input) return;
+    const t = data.time[Math.max(0, Math.min(data.time.length - 1, k))];
+    const setter = Object.getOwnPropertyDescriptor(HTMLInputElement.prototype, "value").set;
+    setter.call(input, t.toFixed(4));
+    input.dispatchEvent(new Event("input", { bubbles: true }));
+  }
+
+  document.getElementById("bulletnet-prev").onclick = () => seek(shown - 1);
+  document.getElementById("bulletnet-next").onclick = () => seek(shown + 1);
+  document.getElementById("bulletnet-fold").onclick = () => box.classList.toggle("folded");
+
+  setInterval(() => {
+    const slider = playbackSlider();
+    if (!slider) return;
+    const k = frameAt(parseFloat(slider.getAttribute("aria-valuenow")));
+    if (k !== shown) draw(k);
+  }, 40);
+})();
