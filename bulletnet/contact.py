@@ -20,7 +20,13 @@ import numba as nb
 import numpy as np
 
 from .forces.bending import integrate_rotation
-from .forces.contact import debris_distance, friction_impulse, normal_step, quat_matrix
+from .forces.contact import (
+    debris_distance,
+    friction_impulse,
+    implicit_normal_step,
+    normal_step,
+    quat_matrix,
+)
 from .hertz import BODY_CLASSES, contact_table
 from .model import NetModel, NodeKind
 from .scenario import Scenario
@@ -89,7 +95,8 @@ def setup(s: Scenario, model: NetModel, debris=None, enabled: bool = True) -> Co
     capacity = 16 * n if self_contact else 0
     arrays = (
         node_class, k, c, mu_s, mu_k,
-        np.array([s.friction.slip, s.contact.skin]),   # 5: slip [s/kg], skin [m]
+        np.array([s.friction.slip, s.contact.skin,      # 5: slip [s/kg], skin [m],
+                  float(s.contact.model == "implicit")]),  # normal law: 1 implicit
         parts, com_body, np.array([bound]),             # 6-8: geometry [m]
         np.zeros(3), np.array([[0.0, 0.0, 0.0, 1.0]]),  # 9-10: debris COM [m], quaternion
         np.zeros(3), np.zeros((1, 3)),                  # 11-12: velocity [m/s], [rad/s]
@@ -126,6 +133,15 @@ def _cross(a, b, out):
 @nb.njit(cache=True, error_model="numpy")
 def _norm(a):
     return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+
+
+@nb.njit(cache=True, error_model="numpy")
+def normal_motion(params, s, u, a, k, c, m, dt):
+    """The scene's normal law over one step: exact (:func:`normal_step`) or backward Euler
+    (:func:`implicit_normal_step`, ``contact.model = "implicit"``)."""
+    if params[2] == 1.0:
+        return implicit_normal_step(s, u, a, k, c, m, dt)
+    return normal_step(s, u, a, k, c, m, dt)
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -197,7 +213,8 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
             acc_n += acc[a] * n[a]
         c = cls[i]
         m = mass[i]
-        s1, u1, tc = normal_step(s0, u0, dvn / dt - acc_n, kc[0, c], cc[0, c], m, dt)
+        s1, u1, tc = normal_motion(params, s0, u0, dvn / dt - acc_n, kc[0, c], cc[0, c], m,
+                                   dt)
         predicted[i] = s1
         if tc <= 0.0:
             continue
@@ -314,7 +331,7 @@ def self_stage(pos, vel, dv, mass, radius, contact, dt, t):
             u0 += ((vel[j, a] - dv[j, a]) - (vel[i, a] - dv[i, a])) * n[a]
             dvn += (dv[j, a] - dv[i, a]) * n[a]
         ci, cj = cls[i], cls[j]
-        s1, u1, tc = normal_step(s0, u0, dvn / dt, kc[ci, cj], cc[ci, cj], mc, dt)
+        s1, u1, tc = normal_motion(params, s0, u0, dvn / dt, kc[ci, cj], cc[ci, cj], mc, dt)
         predicted[q] = s1
         if tc <= 0.0:
             continue

@@ -213,3 +213,17 @@ def test_wrap_of_a_flat_net_is_its_solid_angle():
         points = np.stack([(c / (ns - 1) - 0.5) * side, (r / (ns - 1) - 0.5) * side,
                            np.full(ns * ns, -10.0)], axis=1)
         assert _covered(points, net_triangles(ns), rays) == pytest.approx(expected, abs=2e-3)
+
+
+def test_implicit_law_ends_an_impact_inelastically():
+    # Reference: backward Euler on Eq. 6 (a constraint solver's treatment): the touch-down
+    # speed after one step is m u0 / (m + dt c + dt^2 k), ~1e-6 of u0 at dt = 1e-4, and the
+    # node then rests at the surface (no rebound), unlike the exact law's e = 0.97.
+    from bulletnet.forces.contact import implicit_normal_step
+
+    dt = 1e-4
+    s, u, tc = implicit_normal_step(0.0, -1.0, 0.0, K, C, M, dt)  # touching, approaching
+    assert u == pytest.approx(-M / (M + dt * C + dt * dt * K)) and tc == dt
+    for _ in range(5):
+        s, u, _ = implicit_normal_step(s, u, 0.0, K, C, M, dt)
+    assert abs(u) < 1e-4 and abs(s) < 1e-8  # at rest on the surface, not rebounding
