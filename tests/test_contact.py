@@ -226,4 +226,4 @@ def test_implicit_law_ends_an_impact_inelastically():
     assert u == pytest.approx(-M / (M + dt * C + dt * dt * K)) and tc == dt
     for _ in range(5):
         s, u, _ = implicit_normal_step(s, u, 0.0, K, C, M, dt)
-    assert abs(u) < 1e-4 and abs(s) < 1e-8  # at rest on the surface, not rebounding
+    assert 0 <= u < 1e-4 and abs(s) <= 6 * dt * u  # leaves at ~5e-5 m/s, not at 0.97 m/s
