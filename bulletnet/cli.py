@@ -191,6 +191,13 @@ def cmd_params(args) -> int:
         }
     contact = {f"{a}/{b}": {"k_c_N_per_m": k, "c_c_Ns_per_m": c}
                for (a, b), (k, c) in contact_table(scene, model).items()}
+    pybullet_fit = {}
+    if scene.contact.enabled:
+        from .engines.bullet_materials import fit
+
+        mat = fit(scene, model, bool(scene.debris.asset))
+        pybullet_fit = {pair: {"k_c_rel_error": e[0], "c_c_rel_error": e[1],
+                               "mu_k_rel_error": e[2]} for pair, e in mat.errors.items()}
     doc = {
         "scene": scene.scene.name,
         "nodes_per_side": model.nodes_per_side,
@@ -199,6 +206,7 @@ def cmd_params(args) -> int:
         "thread_count": model.thread_count,
         "total_mass_kg": float(model.mass.sum()),
         "nodes": kinds, "threads": threads, "contact": contact,
+        "bullet_engine_contact_fit": pybullet_fit,
     }
     if args.json:
         print(json.dumps(doc, indent=2))
@@ -219,6 +227,13 @@ def cmd_params(args) -> int:
     print("\ncontact pair (Tables 5-6)        k_c [1e9 N/m]   c_c [N s/m]")
     for pair, v in contact.items():
         print(f"{pair:<33}{v['k_c_N_per_m'] / 1e9:>13.4f} {v['c_c_Ns_per_m']:>13.2f}")
+    if pybullet_fit:
+        print("\nbullet engine: PyBullet's per-body values combine per pair (1/k in series, c "
+              "summed, mu multiplied);\nrelative error of the fitted pairs   k_c       c_c"
+              "      mu_k")
+        for pair, v in pybullet_fit.items():
+            print(f"{pair:<33}{v['k_c_rel_error']:>+9.1%} {v['c_c_rel_error']:>+9.1%} "
+                  f"{v['mu_k_rel_error']:>+9.1%}")
     return 0
 
 
