@@ -260,3 +260,32 @@ def test_net_rests_on_the_debris_at_each_pair_penetration(tmp_path):
     cls = [contact.CLASS_OF_KIND[bn.NodeKind(kind)] for kind in model.kind]
     np.testing.assert_allclose(model.radius - (state.position[:, 2] - top),
                                model.mass * 9.81 / k[0, cls], rtol=1e-4)
+
+
+@pytest.mark.parametrize("law", ["exact", "implicit"])
+def test_pressed_sphere_pair_settles_at_its_pair_penetration(law):
+    # Reference: static equilibrium of Eq. 6 for a sphere pair (Eq. 9-10 stiffness of the
+    # pair, Table 5): two nodes pushed together by opposite forces F overlap by F / k_c.
+    scene, model, setup = contact_world(**{"contact.self_contact": True,
+                                           "contact.model": law})
+    a = setup.arrays
+    a[20][0] = False  # nodes only
+    i, j = 0, model.node_count - 1  # a corner node and a corner mass
+    pos = np.tile([0.0, 1e3, 0.0], (model.node_count, 1)) + 10 * np.arange(
+        model.node_count)[:, None]
+    pos[i] = (0.0, 0.0, 0.0)
+    pos[j] = (model.radius[i] + model.radius[j], 0.0, 0.0)
+    vel = np.zeros_like(pos)
+    force, dt = 0.05, 1e-5  # [N], [s]
+    dv = np.zeros_like(vel)
+    for k in range(20000):  # 0.2 s: many damping times of the pair
+        dv[:] = 0.0
+        dv[i, 0], dv[j, 0] = force / model.mass[i] * dt, -force / model.mass[j] * dt
+        vel += dv
+        pos += dt * vel
+        assert contact.ensure_pairs(pos - dt * vel, model.radius, a)
+        contact.self_stage(pos, vel, dv, model.mass, model.radius, a, dt, k * dt)
+    ci, cj = (contact.CLASS_OF_KIND[bn.NodeKind(model.kind[n])] for n in (i, j))
+    k_c = contact.pair_tables(scene, model)[0][ci, cj]
+    overlap = model.radius[i] + model.radius[j] - (pos[j, 0] - pos[i, 0])
+    assert overlap == pytest.approx(force / k_c, rel=1e-4)
