@@ -1,20 +1,25 @@
-"""Screenshots of the browser replay for the README: docs/figures/viewer_deployment.png and
-docs/figures/viewer_capture.png, taken with headless Chromium (as the browser tests).
+"""Screenshots of the browser replay for the README, taken with headless Chromium (as the
+browser tests): docs/figures/viewer_deployment.png from the two 3 s deployment recordings,
 
     bulletnet run deployment --out plain.h5
     bulletnet run deployment --bending --out bending.h5
-    bulletnet run capture --integrator implicit_euler --dt 5e-4 --duration 6 --out net.h5
-    python docs/viewer_figures.py plain.h5 bending.h5 net.h5
+    python docs/viewer_figures.py deployment plain.h5 bending.h5
 
-The capture scene does not record its debris yet, so this script copies the capture net's run
-and adds a synthetic debris in the capture recording layout: the Apollo CSM mesh fixed 7 m
-above the launch point, spinning at 5 deg/s about z, with the nodes within 6 m of its centre
-marked in contact (an illustration of the layout, not a capture).
+and docs/figures/viewer_capture.png from the two 120 s capture recordings,
+
+    bulletnet run capture --out capture_plain.h5
+    bulletnet run capture --bending --out capture_bending.h5
+    python docs/viewer_figures.py capture capture_plain.h5 capture_bending.h5
+
+The capture picture is taken at the frame of 20-30 s where the net wraps the debris best: the
+largest, over those frames, of the smaller of the two recordings' wrap fractions
+(:func:`bulletnet.metrics.wrap`); the script prints the time and both fractions. Its camera
+looks at the debris from the viewer's default direction, 1.8 times closer than the default
+camera (which frames the whole capture up to the last contact).
 """
 
 from __future__ import annotations
 
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -24,23 +29,33 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bulletnet.debris import load_debris, part_mesh  # noqa: E402
+import bulletnet as bn  # noqa: E402
 from bulletnet.viewer import load_replay, viser_server  # noqa: E402
 from bulletnet.viewer.server import LiveViewer  # noqa: E402
-from tests.test_viewer import add_capture_groups  # noqa: E402
 from tests.test_viewer_browser import ARGS, CHROMIUM  # noqa: E402
 
 OUT = ROOT / "docs" / "figures"
+WRAP_WINDOW = (20.0, 30.0)
+"""Times among which the capture picture is taken [s]."""
 
 
-def screenshot(paths: list, at: float, out: Path, snapshots: list[float]) -> None:
-    """The live viewer of ``paths`` paused at time ``at`` [s], 1400 x 1100 px, to ``out``."""
+def screenshot(paths: list, at: float, out: Path, snapshots: list[float],
+               zoom: float = 1.0) -> None:
+    """The live viewer of ``paths`` paused at time ``at`` [s], 1400 x 1100 px, to ``out``;
+    with ``zoom`` > 1 the camera looks at the first recording's debris, from the default
+    camera's direction, ``zoom`` times closer than the default camera's distance."""
     from playwright.sync_api import sync_playwright
 
     replay = load_replay(paths)
     with viser_server() as server, sync_playwright() as p:
         viewer = LiveViewer(server, replay, snapshots)
-        viewer.goto(replay.frame_at(at))
+        k = replay.frame_at(at)
+        viewer.goto(k)
+        if zoom != 1.0:
+            camera = server.initial_camera
+            target = replay.tracks[0].debris.position[replay.index[0, k]]
+            camera.position = target + (camera.position - camera.look_at) / zoom
+            camera.look_at = target
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         page = browser.new_page(viewport={"width": 1400, "height": 1100})
         page.goto(f"http://127.0.0.1:{server.get_port()}")
@@ -52,17 +67,30 @@ def screenshot(paths: list, at: float, out: Path, snapshots: list[float]) -> Non
     print(out)
 
 
-def main(plain: str, bending: str, net: str) -> None:
-    screenshot([plain, bending], 1.5, OUT / "viewer_deployment.png", [0.5, 1.0, 2.0, 3.0])
-    capture = Path(net).with_name("capture_synthetic.h5")
-    shutil.copy(net, capture)
-    import trimesh
+def best_wrap_time(paths: list) -> float:
+    """The time in :data:`WRAP_WINDOW` at which the smallest wrap fraction of the recordings
+    is largest [s] (recordings at one record rate)."""
+    recs = [bn.open_recording(p) for p in paths]
+    t = recs[0].time
+    for rec in recs[1:]:
+        if not np.array_equal(rec.time, t):
+            raise SystemExit("the capture recordings must share their frame times")
+    window = (t >= WRAP_WINDOW[0]) & (t <= WRAP_WINDOW[1])
+    wraps = np.array([bn.metrics.wrap(rec) for rec in recs])
+    k = int(np.flatnonzero(window)[np.argmax(wraps[:, window].min(axis=0))])
+    print(f"t = {t[k]:g} s, wrap " + " / ".join(f"{w:.3f}" for w in wraps[:, k]))
+    return float(t[k])
 
-    csm = trimesh.util.concatenate([part_mesh(p) for p in load_debris("apollo_csm").parts])
-    add_capture_groups(capture, mesh=csm, at=(0.0, 0.0, 7.0), reach=6.0,
-                       spin=np.radians(5.0))
-    screenshot([capture], 6.0, OUT / "viewer_capture.png", [2.0, 4.0, 6.0])
+
+def main(which: str, *paths: str) -> None:
+    if which == "deployment":
+        screenshot(list(paths), 1.5, OUT / "viewer_deployment.png", [0.5, 1.0, 2.0, 3.0])
+    elif which == "capture":
+        at = best_wrap_time(list(paths))
+        screenshot(list(paths), at, OUT / "viewer_capture.png", [10.0, at], zoom=1.8)
+    else:
+        raise SystemExit(__doc__)
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:4])
+    main(*sys.argv[1:])

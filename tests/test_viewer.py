@@ -16,33 +16,6 @@ from bulletnet.viewer.replay import SLACK, thread_colours
 pytest.importorskip("viser")
 
 
-def add_capture_groups(path, mesh=None, at=None, lift=0.5, reach=0.6, spin=2.0):
-    """Turn a deployment recording into a capture-like one (the capture scene's layout): the
-    debris ``mesh`` (default a 1.2 x 0.8 x 0.5 m box) at ``at`` [m] (default ``lift`` [m]
-    above the net's centroid), spinning about z at ``spin`` [rad/s], and the nodes within
-    ``reach`` [m] of its origin in contact with 1 N each."""
-    import trimesh
-
-    mesh = mesh if mesh is not None else trimesh.creation.box((1.2, 0.8, 0.5))
-    with h5py.File(path, "r+") as f:
-        t = f["time"][()]
-        x = f["nodes/position"][()]
-        centre = x.mean(axis=1) + [0.0, 0.0, lift] if at is None else np.tile(at, (t.size, 1))
-        half = 0.5 * spin * t  # quaternion x, y, z, w of a rotation spin t about z
-        xyzw = np.stack([0 * t, 0 * t, np.sin(half), np.cos(half)], axis=1)
-        touching = np.linalg.norm(x - centre[:, None, :], axis=2) < reach
-        node_force = touching * 1.0
-        for name, data, units in (
-                ("debris/position", centre, "m"), ("debris/orientation", xyzw, "1"),
-                ("debris/mesh_vertices", mesh.vertices, "m"),
-                ("debris/mesh_faces", mesh.faces, "1"),
-                ("contacts/count", touching.sum(axis=1), "1"),
-                ("contacts/normal_force", node_force.sum(axis=1), "N"),
-                ("contacts/node_force", node_force, "N")):
-            f.create_dataset(name, data=data).attrs["units"] = units
-    return path
-
-
 @pytest.fixture
 def runs(viewer_runs):
     return viewer_runs
@@ -87,6 +60,34 @@ def test_capture_groups_pose_matches_the_recorded_quaternion(runs):
         ours = track.debris.position[k] + vertices @ SO3(track.debris.wxyz[k]).as_matrix().T
         np.testing.assert_allclose(ours, world, atol=1e-12)
     assert track.contacts.count.max() > 0
+
+
+def test_camera_frames_the_capture_and_the_whole_deployment(runs):
+    # reference: the recordings' own arrays, the debris mesh placed by scipy's reading of the
+    # recorded quaternion; a capture is framed up to its last frame in contact, a recording
+    # without contact over all its frames
+    from scipy.spatial.transform import Rotation
+
+    replay = load_replay([runs["capture"], runs["plain"]])
+    lo, hi = replay.view_box()
+    rec, plain = bn.open_recording(runs["capture"]), bn.open_recording(runs["plain"])
+    last = int(np.flatnonzero(rec.contacts["count"] > 0)[-1])
+    d = rec.debris
+    meshes = np.concatenate([d["position"][k] + Rotation.from_quat(d["orientation"][k]).apply(
+        d["mesh_vertices"]) for k in range(rec.time.size)])
+    for points in (rec.position[:last + 1].reshape(-1, 3), plain.position.reshape(-1, 3),
+                   meshes):
+        assert np.all(points >= lo - 1e-12) and np.all(points <= hi + 1e-12)
+    # the documented definition; the replay keeps the mesh in float32 (as viser draws it), so
+    # the debris' reach is the recorded one to float32's rounding (2^-24 relative)
+    reach = np.linalg.norm(d["mesh_vertices"], axis=1).max()
+    points = np.concatenate([rec.position[:last + 1].reshape(-1, 3), plain.position.reshape(
+        -1, 3), d["position"] - reach, d["position"] + reach])
+    np.testing.assert_allclose(lo, points.min(axis=0), rtol=0, atol=2.0**-24 * reach)
+    np.testing.assert_allclose(hi, points.max(axis=0), rtol=0, atol=2.0**-24 * reach)
+    lo, hi = load_replay([runs["plain"]]).view_box()
+    np.testing.assert_array_equal(lo, plain.position.min(axis=(0, 1)))
+    np.testing.assert_array_equal(hi, plain.position.max(axis=(0, 1)))
 
 
 def test_thread_colours_slack_grey_and_darker_with_tension():
@@ -182,7 +183,7 @@ def test_view_bad_input_is_one_line(runs, tmp_path, capsys):
     broken.write_bytes(runs["capture"].read_bytes())
     with h5py.File(broken, "r+") as f:
         del f["debris/mesh_faces"]
-        f["debris/mesh_faces"] = np.array([[0, 1, 99]])
+        f["debris/mesh_faces"] = np.array([[0, 1, len(f["debris/mesh_vertices"])]])
     no_pose = tmp_path / "no_pose.h5"
     no_pose.write_bytes(runs["capture"].read_bytes())
     with h5py.File(no_pose, "r+") as f:

@@ -120,6 +120,26 @@ class Replay:
     def has_bending(self) -> bool:
         return self.shear_scale is not None
 
+    def view_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lowest and highest corners of what the initial camera frames [m], shape (3,) each:
+        the nodes of every recording over its frames up to its last one in contact with the
+        debris (all its frames if it has no contact), and the debris' bounding sphere (about
+        its body-frame origin) at every recorded pose. After the last contact, a net that did
+        not hold the debris drifts off (tens of metres in the 120 s capture): framing that too
+        would shrink the debris to a few pixels."""
+        points = []
+        for t in self.tracks:
+            frames = t.time.size
+            if t.contacts is not None and np.any(t.contacts.count > 0):
+                frames = int(np.nonzero(t.contacts.count > 0)[0][-1]) + 1
+            points.append(t.position[:frames].reshape(-1, 3))
+            if t.debris is not None:
+                reach = float(np.linalg.norm(t.debris.vertices.astype(np.float64),
+                                               axis=1).max())
+                points += [t.debris.position - reach, t.debris.position + reach]
+        return (np.min([p.min(axis=0) for p in points], axis=0),
+                np.max([p.max(axis=0) for p in points], axis=0))
+
     def default_snapshots(self, count: int = 7) -> list[float]:
         """``count`` evenly spaced snapshot times over the replay, as ``bulletnet plot``'s
         [s]."""

@@ -54,7 +54,7 @@ class TrackLayer:
         if track.debris is not None:
             d = track.debris
             self.debris = scene.add_mesh_simple(
-                f"{name}/debris", d.vertices, d.faces, color=(190, 190, 200), opacity=0.85,
+                f"{name}/debris", d.vertices, d.faces, color=(120, 120, 135), opacity=0.85,
                 flat_shading=True, wxyz=d.wxyz[0], position=d.position[0])
 
     def _thread_points(self, j: int) -> np.ndarray:
@@ -116,7 +116,7 @@ class TrackLayer:
 
 
 def build_scene(server, replay: Replay) -> list[TrackLayer]:
-    """Ground grid, camera on the whole replay, and one layer per recording at frame 0."""
+    """Ground grid, camera on :meth:`Replay.view_box`, and one layer per recording at frame 0."""
     scene = server.scene
     scene.set_up_direction("+z")
     # no shadows (of 2 px threads) and no environment map: both cost much and show little,
@@ -124,10 +124,7 @@ def build_scene(server, replay: Replay) -> list[TrackLayer]:
     scene.configure_default_lights(cast_shadow=False)
     scene.configure_environment_map(hdri=None)
     scene.add_light_ambient("/ambient", intensity=1.5)
-    points = [t.position.reshape(-1, 3) for t in replay.tracks]
-    points += [t.debris.position for t in replay.tracks if t.debris is not None]
-    lo, hi = np.min([p.min(axis=0) for p in points], axis=0), \
-        np.max([p.max(axis=0) for p in points], axis=0)
+    lo, hi = replay.view_box()
     centre, size = 0.5 * (lo + hi), float(np.max(hi - lo)) or 1.0
     scene.add_grid("/grid", width=2 * size, height=2 * size, cell_size=size / 10,
                    section_size=size / 2, position=(centre[0], centre[1], lo[2]))
