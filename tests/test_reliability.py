@@ -118,7 +118,8 @@ def test_damaged_recordings_give_clear_errors(tmp_path, capsys):
 
 
 def test_oversized_recording_refused_up_front(tmp_path, capsys):
-    code = main(["run", "capture", "--dt", "1e-6", "--record-rate", "100000", "--out", str(tmp_path / "x.h5")])
+    code = main(["run", "capture", "--dt", "1e-6", "--record-rate", "100000",
+                 "--out", str(tmp_path / "x.h5")])
     assert code == 2
     err = capsys.readouterr().err
     assert "GB" in err and "--record-rate" in err and err.count("\n") == 1
