@@ -19,6 +19,7 @@ from .engines import make_engine
 from .errors import DivergenceError, ScenarioError
 from .recorder import Recorder
 from .scenario import Scenario, to_toml
+from .stability import analytical_limits
 from .state import NetState
 
 MAX_RECORDING_BYTES = 2e9
@@ -85,18 +86,27 @@ def speed_limit(s: Scenario, state: NetState) -> float:
     return 100.0 * (v0 + g * s.scene.duration + 1.0)
 
 
-def _check(state: NetState, limit: float, dt: float) -> None:
+def _check(state: NetState, limit: float) -> str:
+    """Why ``state`` has diverged (non-finite, or a node faster than ``limit`` [m/s]), or ""."""
     if not np.isfinite(state.position).all() or not np.isfinite(state.velocity).all():
-        raise DivergenceError(
-            f"diverged at t = {state.time:.6g} s: non-finite state with step {dt:.3g} s; "
-            "the step is likely too large for the thread stiffness and damping "
-            "(use a smaller --dt or the implicit_euler integrator)", state.time)
+        return "non-finite state"
     vmax = float(np.linalg.norm(state.velocity, axis=1).max())
     if vmax > limit:
-        raise DivergenceError(
-            f"diverged at t = {state.time:.6g} s: a node moves at {vmax:.3g} m/s "
-            f"(limit {limit:.3g} m/s) with step {dt:.3g} s; the step is likely too large "
-            "for the thread stiffness and damping", state.time)
+        return f"a node moves at {vmax:.3g} m/s (limit {limit:.3g} m/s)"
+    return ""
+
+
+def _divergence(reason: str, state: NetState, dt: float, integrator: str,
+                limits) -> DivergenceError:
+    """The typed error of a diverged run, naming the step and the analytical limit (an
+    adaptive run, ``dt`` 0, has none)."""
+    if dt <= 0:
+        return DivergenceError(f"diverged at t = {state.time:.6g} s: {reason} with the "
+                               "adaptive reference engine", state.time)
+    return DivergenceError(
+        f"diverged at t = {state.time:.6g} s: {reason} with step {dt:.3g} s; "
+        f"{limits.describe(integrator)}; use a smaller --dt or the implicit_euler integrator",
+        state.time, step=dt, limit=limits.for_integrator(integrator))
 
 
 def preflight(scenario: Scenario, out: str | os.PathLike | None, force: bool = False):
@@ -138,12 +148,16 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         }, oriented=state.oriented)
         recorder.append(state, *engine.thread_loads(state))
     limit = speed_limit(scenario, state)
+    start_position = state.position.copy()
     status, message, error = "running", "", None
     start = _time.perf_counter()
     try:
         for t in times[1:]:
             engine.advance(state, float(t))
-            _check(state, limit, engine.dt)
+            reason = _check(state, limit)
+            if reason:
+                raise _divergence(reason, state, engine.dt, engine.integrator,
+                                  analytical_limits(model, start_position))
             if recorder is not None:
                 recorder.append(state, *engine.thread_loads(state))
             if progress is not None:

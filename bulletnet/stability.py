@@ -1,0 +1,170 @@
+"""Stability limits of the integrators: analytical, from the assembled threads, and measured.
+
+Linearised about a configuration with every thread taut, the net obeys
+``M a = -K x - C v`` with ``K = sum_p k_p B_p``, ``C = sum_p c_p B_p`` and ``B_p`` thread p's
+graph-Laplacian block ``e_p e_p^T`` (clamped nodes removed). Two eigenvalues bound what an
+explicit step can take:
+
+- ``omega_max^2 = lambda_max(M^-1 K)`` [rad^2/s^2], the fastest thread mode;
+- ``gamma_max = lambda_max(M^-1 C)`` [1/s], the fastest damper relaxation rate.
+
+Symplectic Euler on one damped mode ``x'' = -omega^2 x - gamma x'`` has the amplification
+matrix ``[[1 - h gamma, -h omega^2], [h (1 - h gamma), 1 - h^2 omega^2]]`` (on (v, x)) with
+determinant ``1 - h gamma`` and trace ``2 - h gamma - h^2 omega^2``; the Jury conditions reduce
+to ``h gamma < 2`` and ``h^2 omega^2 + 2 h gamma < 4``, i.e.
+``h < 4 / (gamma + sqrt(gamma^2 + 4 omega^2))``, which is ``2 / omega`` without damping (the
+stiffness limit) and ``2 / gamma`` without stiffness (the damping limit). With both maxima in
+it, it is a lower bound of the net's limit (exact when C is proportional to K, as for the
+paper's axial dampers ``c_a = 2 xi_a k_a / omega_ref``). Linearly implicit Euler is A-stable on
+the linearised threads: it has no step limit.
+
+Bending springs are left out: they are about six orders softer than the axial threads and run
+on their own multirate interval (:func:`bulletnet.engines.base.bending_interval`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import DivergenceError
+from .model import NetModel
+from .scenario import Scenario
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Analytical step limits of the net with every thread taut."""
+
+    omega_max: float
+    """Largest thread frequency sqrt(lambda_max(M^-1 K)) [rad/s]."""
+    gamma_max: float
+    """Largest damper relaxation rate lambda_max(M^-1 C) [1/s]."""
+
+    @property
+    def stiffness_limit(self) -> float:
+        """2 / omega_max [s]: the explicit limit of the undamped threads."""
+        return 2.0 / self.omega_max if self.omega_max > 0 else math.inf
+
+    @property
+    def damping_limit(self) -> float:
+        """2 / gamma_max [s]: the explicit limit of the dampers alone."""
+        return 2.0 / self.gamma_max if self.gamma_max > 0 else math.inf
+
+    @property
+    def explicit_limit(self) -> float:
+        """4 / (gamma + sqrt(gamma^2 + 4 omega^2)) [s]: symplectic Euler's limit with both."""
+        g, w = self.gamma_max, self.omega_max
+        if g == 0 and w == 0:
+            return math.inf
+        return 4.0 / (g + math.sqrt(g * g + 4.0 * w * w))
+
+    def for_integrator(self, integrator: str) -> float:
+        """The step limit [s] of ``integrator``: the explicit one, or inf for implicit Euler."""
+        return self.explicit_limit if integrator == "symplectic_euler" else math.inf
+
+    def describe(self, integrator: str) -> str:
+        """One phrase naming ``integrator``'s analytical limit and where it comes from."""
+        if integrator != "symplectic_euler":
+            return (f"{integrator} has no linear stability limit (A-stable; stiffness "
+                    f"2/omega_max = {self.stiffness_limit:.3g} s)")
+        return (f"the analytical limit of {integrator} on this net is "
+                f"{self.explicit_limit:.3g} s (damping 2/gamma_max = {self.damping_limit:.3g} s, "
+                f"stiffness 2/omega_max = {self.stiffness_limit:.3g} s)")
+
+
+def _taut_laplacian(model: NetModel, position: np.ndarray, weight: np.ndarray):
+    """sum_p weight_p B_p as a sparse (3F, 3F) matrix over the F free nodes, B_p the Laplacian
+    block e_p e_p^T of thread p along its direction at ``position`` [m] (N, 3)."""
+    from scipy import sparse
+
+    free = np.flatnonzero(~model.fixed)
+    index = np.full(model.node_count, -1)
+    index[free] = np.arange(free.size)
+    i, j = model.pairs[:, 0], model.pairs[:, 1]
+    d = position[j] - position[i]
+    e = d / np.linalg.norm(d, axis=1, keepdims=True)
+    block = weight[:, None, None] * e[:, :, None] * e[:, None, :]  # (P, 3, 3)
+    rows, cols, vals = [], [], []
+    a, b = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+    for u, v, sign in ((i, i, 1.0), (j, j, 1.0), (i, j, -1.0), (j, i, -1.0)):
+        ok = (index[u] >= 0) & (index[v] >= 0)
+        rows.append((3 * index[u][ok, None, None] + a).ravel())
+        cols.append((3 * index[v][ok, None, None] + b).ravel())
+        vals.append((sign * block[ok]).ravel())
+    size = 3 * free.size
+    matrix = sparse.coo_matrix((np.concatenate(vals), (np.concatenate(rows),
+                                np.concatenate(cols))), shape=(size, size)).tocsr()
+    return matrix, free
+
+
+def _largest_eigenvalue(model: NetModel, position: np.ndarray, weight: np.ndarray) -> float:
+    """lambda_max(M^-1 A) for A = sum_p weight_p B_p, via the symmetric M^-1/2 A M^-1/2."""
+    from scipy import sparse
+    from scipy.sparse.linalg import eigsh
+
+    matrix, free = _taut_laplacian(model, position, weight)
+    if matrix.shape[0] == 0 or not np.any(weight):
+        return 0.0
+    scale = sparse.diags(np.repeat(1.0 / np.sqrt(model.mass[free]), 3))
+    sym = scale @ matrix @ scale
+    if sym.shape[0] <= 60:  # small: dense is exact and cheaper than Lanczos
+        return float(np.linalg.eigvalsh(sym.toarray())[-1])
+    return float(eigsh(sym, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0])
+
+
+def analytical_limits(model: NetModel, position: np.ndarray) -> Limits:
+    """Step limits of the net with every thread taut along its direction at ``position`` [m],
+    shape (N, 3) (the initial state's directions are the deployed net's)."""
+    omega2 = _largest_eigenvalue(model, position, model.axial_stiffness)
+    gamma = _largest_eigenvalue(model, position, model.axial_damping)
+    return Limits(omega_max=math.sqrt(max(omega2, 0.0)), gamma_max=max(gamma, 0.0))
+
+
+def scene_limits(scenario: Scenario) -> Limits:
+    """:func:`analytical_limits` of the scene's model at its initial state."""
+    from .builder import build_model, initial_state
+
+    model = build_model(scenario)
+    return analytical_limits(model, initial_state(scenario, model).position)
+
+
+def is_stable(scenario: Scenario, dt: float, horizon: float) -> bool:
+    """Whether ``scenario`` runs ``horizon`` seconds at step ``dt`` [s] without the run's own
+    :class:`DivergenceError` (non-finite state or runaway node speed)."""
+    from .simulate import run
+
+    scene = scenario.with_overrides({"simulation.dt": dt, "scene.duration": horizon,
+                                     "simulation.record_rate": min(
+                                         scenario.simulation.record_rate, 1.0 / dt)})
+    try:
+        run(scene)
+    except DivergenceError:
+        return False
+    return True
+
+
+def largest_stable_step(scenario: Scenario, horizon: float, low: float, high: float,
+                        rel_tol: float = 0.02) -> dict:
+    """Bisect (geometrically) for the largest stable step [s] between ``low`` and ``high``.
+
+    Returns ``{"dt_stable_s", "dt_unstable_s", "runs"}``: the largest step found stable and the
+    smallest found unstable (``None`` if ``high`` itself is stable, or ``low`` is not), to
+    ``rel_tol`` of each other."""
+    runs = 0
+    if is_stable(scenario, high, horizon):
+        return {"dt_stable_s": high, "dt_unstable_s": None, "runs": 1}
+    runs += 1
+    if not is_stable(scenario, low, horizon):
+        return {"dt_stable_s": None, "dt_unstable_s": low, "runs": runs + 1}
+    runs += 1
+    while high / low > 1.0 + rel_tol:
+        mid = math.sqrt(low * high)
+        runs += 1
+        if is_stable(scenario, mid, horizon):
+            low = mid
+        else:
+            high = mid
+    return {"dt_stable_s": low, "dt_unstable_s": high, "runs": runs}
