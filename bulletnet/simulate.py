@@ -17,6 +17,7 @@ import numpy as np
 from .builder import build_model, initial_state
 from .engines import make_engine
 from .errors import DivergenceError, ScenarioError
+from .profiling import Profile, instrument, step_split
 from .recorder import Recorder
 from .scenario import Scenario, to_toml
 from .stability import analytical_limits
@@ -124,8 +125,10 @@ def preflight(scenario: Scenario, out: str | os.PathLike | None, force: bool = F
 
 
 def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
-        progress: Progress | None = None, force: bool = False) -> RunResult:
-    """Simulate ``scenario``; record to ``out`` (HDF5) if given.
+        progress: Progress | None = None, force: bool = False,
+        profile: Profile | None = None) -> RunResult:
+    """Simulate ``scenario``; record to ``out`` (HDF5) if given; with ``profile``, time the
+    run's sections into it (:mod:`bulletnet.profiling`).
 
     An existing ``out``, or a recording estimated above :data:`MAX_RECORDING_BYTES`, is an
     error unless ``force``. On Ctrl-C the recording is closed with
@@ -147,6 +150,8 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             "bulletnet_version": _version(),
         }, oriented=state.oriented)
         recorder.append(state, *engine.thread_loads(state))
+    if profile is not None:
+        instrument(profile, engine, recorder)
     limit = speed_limit(scenario, state)
     start_position = state.position.copy()
     status, message, error = "running", "", None
@@ -172,6 +177,10 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         if status == "running":  # an unexpected error: keep the frames, say so
             status, message = "interrupted", "stopped by an internal error"
         stats = engine.stats()
+        if profile is not None:
+            profile.stop()
+            if status == "completed":
+                profile.split = step_split(engine, state)
         engine.close()
         path = None
         frames = 0
