@@ -1,4 +1,5 @@
-"""The ``bulletnet`` command line: run, params, compare, metrics, plot, bench, sweep.
+"""The ``bulletnet`` command line: run, params, compare, metrics, plot, bench, stability,
+sweep.
 
 Errors are one line on stderr: exit code 2 for bad input, 3 for a diverged run, 130 for an
 interrupted one."""
@@ -87,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("--times", type=float, nargs="+", metavar="S",
                       help="mouth snapshot times [s] (default: 7 evenly spaced)")
     _add_bench(sub)
+    _add_stability(sub)
     _add_sweep(sub)
     return parser
 
@@ -119,6 +121,33 @@ def _add_bench(sub) -> None:
                        help="simulated time of each stability run [s] (default: --duration)")
     bench.add_argument("--out", default="bench", metavar="DIR",
                        help="folder for bench_SCENE[_bending].json/.png and the runs")
+
+
+def _add_stability(sub) -> None:
+    stability = sub.add_parser("stability", help="largest stable step of each method, "
+                               "bisected, beside the analytical limits")
+    stability.add_argument("scene", help="scene name or path to a .toml")
+    stability.add_argument("--methods", nargs="+", metavar="ENGINE:INTEGRATOR",
+                           default=["fast:symplectic_euler", "fast:implicit_euler"])
+    stability.add_argument("--horizon", type=_positive, metavar="S",
+                           help="simulated time of each trial run [s] (default: the scene's "
+                                "duration)")
+    stability.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None)
+    stability.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    stability.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+def cmd_stability(args) -> int:
+    from .bench import parse_method, stability_table
+
+    methods = [parse_method(m) for m in args.methods]
+    flags = {"bending.enabled": args.bending}
+    scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
+    log = None if args.json else print
+    rows = stability_table(scene, methods, args.horizon or scene.scene.duration, log=log)
+    if args.json:
+        print(json.dumps(rows, indent=2))
+    return 0
 
 
 def _add_sweep(sub) -> None:
@@ -372,7 +401,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": cmd_run, "params": cmd_params, "compare": cmd_compare,
                "metrics": cmd_metrics, "plot": cmd_plot, "bench": cmd_bench,
-               "sweep": cmd_sweep}[args.command]
+               "stability": cmd_stability, "sweep": cmd_sweep}[args.command]
     signal.signal(signal.SIGTERM, _terminate)
     try:
         return handler(args)

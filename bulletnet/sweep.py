@@ -23,6 +23,7 @@ parameter.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
 import time
@@ -164,17 +165,25 @@ def run_variant(index: int, scene: str, overrides: dict, out: str,
     return row
 
 
-def warm_up() -> None:
-    """Load the compiled kernels of both integrators, with and without bending, in this
-    process (a tiny run each), so that no variant's wall time includes it."""
+def warm_up(scene: str, variants: tuple[dict, ...]) -> None:
+    """Load the compiled kernels the variants use in this process (one record interval of the
+    first variant of each integrator and bending setting), so that no variant's wall time
+    includes it."""
     from .scenario import load
     from .simulate import run
 
-    for integrator in ("symplectic_euler", "implicit_euler"):
-        for bending in (False, True):
-            run(load("deployment", {"net.nodes_per_side": 2, "scene.duration": 0.01,
-                                    "simulation.integrator": integrator,
-                                    "bending.enabled": bending}))
+    seen = set()
+    for overrides in variants:
+        variant = load(scene, overrides)
+        kind = (variant.simulation.engine, variant.simulation.integrator,
+                variant.bending.enabled)
+        if kind not in seen:
+            seen.add(kind)
+            try:
+                run(variant.with_overrides(
+                    {"scene.duration": 1.0 / variant.simulation.record_rate}))
+            except BulletnetError:
+                pass
 
 
 def run_sweep(sweep: Sweep, out: Path, scheduler: str | None = None, workers: int = 2,
@@ -186,15 +195,15 @@ def run_sweep(sweep: Sweep, out: Path, scheduler: str | None = None, workers: in
     jobs = [(k, sweep.scene, v, str(runs / f"variant_{k:03d}.h5"))
             for k, v in enumerate(sweep.variants)]
     if serial:
-        warm_up()
+        warm_up(sweep.scene, sweep.variants)
         rows = []
         for job in jobs:
             rows.append(run_variant(*job))
             if log is not None:
                 log(_row_text(rows[-1]))
         return rows
-    with _client(scheduler, workers) as client:
-        client.run(warm_up)
+    with dask_client(scheduler, workers) as client:
+        client.run(warm_up, sweep.scene, sweep.variants)
         futures = [client.submit(run_variant, *job, pure=False) for job in jobs]
         rows = []
         from dask.distributed import as_completed
@@ -206,36 +215,26 @@ def run_sweep(sweep: Sweep, out: Path, scheduler: str | None = None, workers: in
     return sorted(rows, key=lambda r: r["variant"])
 
 
-class _client:
+@contextlib.contextmanager
+def dask_client(scheduler: str | None, workers: int):
     """A Dask client on ``scheduler``, or on a local cluster of ``workers`` processes (one
     thread each: the compiled kernels hold the GIL), closed on exit."""
-
-    def __init__(self, scheduler: str | None, workers: int):
-        self.scheduler, self.workers = scheduler, workers
-
-    def __enter__(self):
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise ScenarioError(
+            "sweeps need dask.distributed: pip install 'bulletnet[sweep]'") from None
+    if scheduler is not None:
         try:
-            from dask.distributed import Client, LocalCluster
-        except ImportError:
-            raise ScenarioError(
-                "sweeps need dask.distributed: pip install 'bulletnet[sweep]'") from None
-        self.cluster = None
-        if self.scheduler is None:
-            self.cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1,
-                                        processes=True, dashboard_address=None)
-            self.client = Client(self.cluster)
-        else:
-            try:
-                self.client = Client(self.scheduler, timeout="10s")
-            except OSError as exc:
-                raise ScenarioError(
-                    f"--scheduler {self.scheduler}: cannot connect: {exc}") from None
-        return self.client
-
-    def __exit__(self, *exc):
-        self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
+            client = Client(scheduler, timeout="10s")
+        except OSError as exc:
+            raise ScenarioError(f"--scheduler {scheduler}: cannot connect: {exc}") from None
+        with client:
+            yield client
+        return
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        yield client
 
 
 def _row_text(row: dict) -> str:

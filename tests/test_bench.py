@@ -69,7 +69,7 @@ def test_profile_accounts_for_the_run_loop(tmp_path):
     # so they add up to no more than it, and cover nearly all of it; the calibrated force
     # kernels are part of a step, so they take less than a whole step.
     profile = Profile()
-    result = bn.run(small_scene(**{"scene.duration": 0.2}), tmp_path / "p.h5", profile=profile)
+    result = bn.run(small_scene(**{"scene.duration": 0.1}), tmp_path / "p.h5", profile=profile)
     measured = sum(profile.seconds.values())
     assert measured <= result.wall_time_s
     assert measured >= 0.9 * result.wall_time_s

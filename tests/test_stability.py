@@ -3,21 +3,17 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import numpy as np
 import pytest
 from conftest import small_scene
+from test_recording_cli import cli
 
 import bulletnet as bn
 from bulletnet.engines import make_engine
-from bulletnet.stability import (
-    Limits,
-    analytical_limits,
-    is_stable,
-    largest_stable_step,
-    scene_limits,
-)
+from bulletnet.stability import Limits, analytical_limits, is_stable, scene_limits
 
 
 def test_two_mass_thread_limits_match_closed_form():
@@ -83,13 +79,16 @@ def test_bisection_brackets_the_stable_step_and_implicit_euler_has_no_limit():
     # Reference: the measured largest stable step lies at or above the conservative linear
     # bound; implicit Euler (A-stable) runs 100x above the explicit bound and beyond the
     # undamped stiffness limit 2/omega_max without diverging.
-    scene = small_scene(**{"net.fold_ratio": 1.0, "scene.duration": 0.05})
-    limits = scene_limits(scene)
-    found = largest_stable_step(scene, 0.05, 0.5 * limits.explicit_limit,
-                                4 * limits.explicit_limit, rel_tol=0.1)
-    assert limits.explicit_limit <= found["dt_stable_s"] < found["dt_unstable_s"]
-    assert found["dt_unstable_s"] <= 1.1 * found["dt_stable_s"]
-    implicit = scene.with_overrides({"simulation.integrator": "implicit_euler"})
+    proc = cli("stability", "deployment", "--set", "net.nodes_per_side=6", "--set",
+               "net.fold_ratio=1.0", "--horizon", "0.05", "--json")
+    assert proc.returncode == 0, proc.stderr
+    explicit, implicit = json.loads(proc.stdout)
+    limits = scene_limits(small_scene(**{"net.fold_ratio": 1.0}))
+    assert explicit["analytical_limit_s"] == pytest.approx(limits.explicit_limit)
+    assert limits.explicit_limit <= explicit["dt_stable_s"] < explicit["dt_unstable_s"]
+    assert explicit["dt_unstable_s"] <= 1.03 * explicit["dt_stable_s"]
+    assert implicit["analytical_limit_s"] is None and implicit["dt_unstable_s"] is None
+    scene = small_scene(**{"net.fold_ratio": 1.0, "simulation.integrator": "implicit_euler"})
     dt = 100 * limits.explicit_limit
     assert dt > limits.stiffness_limit
-    assert is_stable(implicit, dt, 0.05)
+    assert is_stable(scene, dt, 0.05)

@@ -74,11 +74,18 @@ def test_cli_sweep_serial_writes_table_and_plots(sweep_file, tmp_path):
     ('scene = "nosuchscene"\n', "no such scene"),
     ("scene = [\n", "malformed TOML"),
 ])
-def test_bad_sweep_files_are_one_line_errors(tmp_path, text, needle):
+def test_bad_sweep_files_are_refused_before_running(tmp_path, text, needle):
     path = tmp_path / "bad.toml"
     path.write_text(text)
-    proc = cli("sweep", str(path), "--serial", "--out", str(tmp_path / "o"))
-    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and needle in proc.stderr
+    with pytest.raises(bn.ScenarioError, match=needle):
+        load_sweep(path)
+
+
+def test_cli_bad_sweep_is_one_line(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text('scene = "deployment"\nmode = "grid"\n')
+    proc = cli("sweep", str(path), "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "mode" in proc.stderr
 
 
 def test_example_sweep_is_sixteen_valid_variants():

@@ -1,0 +1,52 @@
+"""Sweep benchmark (issue 5): the 16 variants of scenarios/sweep_example.toml on a local Dask
+cluster of WORKERS processes against the same variants one after another in one process, in
+the same run. Both warm their compiled kernels first (untimed in each variant's wall time);
+the Dask time is reported with and without starting the cluster. Writes
+OUT/sweep_speedup.json.
+
+Usage: python benchmarks/sweep_speedup.py [OUT] [--workers N]
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+
+from common import output_dir, parser
+
+from bulletnet.scenario import SCENARIO_DIR
+from bulletnet.sweep import dask_client, load_sweep, run_sweep
+
+
+def main() -> None:
+    p = parser(__doc__)
+    p.add_argument("--workers", type=int, default=2)
+    args = p.parse_args()
+    out = output_dir(args)
+    spec = load_sweep(SCENARIO_DIR / "sweep_example.toml")
+
+    start = time.perf_counter()
+    serial = run_sweep(spec, out / "serial", serial=True)
+    serial_s = time.perf_counter() - start
+
+    start = time.perf_counter()
+    with dask_client(None, args.workers) as client:
+        ready = time.perf_counter()
+        parallel = run_sweep(spec, out / "dask", scheduler=client.scheduler.address)
+    done = time.perf_counter()
+    doc = {"variants": len(spec.variants), "workers": args.workers, "cpus": os.cpu_count(),
+           "serial_s": serial_s, "dask_s": done - ready, "dask_with_cluster_start_s": done - start,
+           "speedup": serial_s / (done - ready),
+           "speedup_with_cluster_start": serial_s / (done - start),
+           "statuses": [r["status"] for r in parallel],
+           "same_measures": all(a["final_mouth_area_m2"] == b["final_mouth_area_m2"]
+                                for a, b in zip(serial, parallel, strict=True)),
+           "variant_wall_s": {"serial": [r["wall_s"] for r in serial],
+                              "dask": [r["wall_s"] for r in parallel]}}
+    (out / "sweep_speedup.json").write_text(json.dumps(doc, indent=2))
+    print(json.dumps({k: v for k, v in doc.items() if k != "variant_wall_s"}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
