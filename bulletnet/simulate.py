@@ -162,7 +162,8 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             reason = _check(state, limit)
             if reason:
                 raise _divergence(reason, state, engine.dt, engine.integrator,
-                                  analytical_limits(model, start_position))
+                                  analytical_limits(model, start_position,
+                                                    scenario.bending.enabled))
             if recorder is not None:
                 recorder.append(state, *engine.thread_loads(state))
             if progress is not None:

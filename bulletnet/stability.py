@@ -18,8 +18,12 @@ it, it is a lower bound of the net's limit (exact when C is proportional to K, a
 paper's axial dampers ``c_a = 2 xi_a k_a / omega_ref``). Linearly implicit Euler is A-stable on
 the linearised threads: it has no step limit.
 
-Bending springs are left out: they are about six orders softer than the axial threads and run
-on their own multirate interval (:func:`bulletnet.engines.base.bending_interval`).
+Bending springs are explicit in both integrators (impulses every n steps, n >= 1 from
+:func:`bulletnet.engines.base.bending_interval`), so with bending both have a second limit on
+n dt, from the nodes' rotation on the bending and transverse springs: the same formula with
+the Gershgorin bounds ``gamma_b <= 2 max_i sum(c_b + c_t l^2) / J_i`` and
+``omega_b^2 <= 2 max_i sum(k_b + k_t l^2) / J_i`` (a graph Laplacian's eigenvalues are at most
+twice its largest diagonal entry), so the bending limit is conservative.
 """
 
 from __future__ import annotations
@@ -42,6 +46,10 @@ class Limits:
     """Largest thread frequency sqrt(lambda_max(M^-1 K)) [rad/s]."""
     gamma_max: float
     """Largest damper relaxation rate lambda_max(M^-1 C) [1/s]."""
+    bending_omega: float = 0.0
+    """Bound on the fastest rotational frequency on the bending springs [rad/s] (0: none)."""
+    bending_gamma: float = 0.0
+    """Bound on the fastest rotational damping rate on the bending springs [1/s] (0: none)."""
 
     @property
     def stiffness_limit(self) -> float:
@@ -55,24 +63,39 @@ class Limits:
 
     @property
     def explicit_limit(self) -> float:
-        """4 / (gamma + sqrt(gamma^2 + 4 omega^2)) [s]: symplectic Euler's limit with both."""
-        g, w = self.gamma_max, self.omega_max
-        if g == 0 and w == 0:
-            return math.inf
-        return 4.0 / (g + math.sqrt(g * g + 4.0 * w * w))
+        """4 / (gamma + sqrt(gamma^2 + 4 omega^2)) [s]: symplectic Euler's limit on the threads."""
+        return _explicit_step(self.gamma_max, self.omega_max)
+
+    @property
+    def bending_limit(self) -> float:
+        """The explicit limit of the bending impulses' interval n dt [s] (inf without bending)."""
+        return _explicit_step(self.bending_gamma, self.bending_omega)
 
     def for_integrator(self, integrator: str) -> float:
-        """The step limit [s] of ``integrator``: the explicit one, or inf for implicit Euler."""
-        return self.explicit_limit if integrator == "symplectic_euler" else math.inf
+        """The step limit [s] of ``integrator``: the explicit one (and the bending one, if any)
+        for symplectic Euler; only the bending one (inf without bending) for implicit Euler."""
+        if integrator == "symplectic_euler":
+            return min(self.explicit_limit, self.bending_limit)
+        return self.bending_limit
 
     def describe(self, integrator: str) -> str:
         """One phrase naming ``integrator``'s analytical limit and where it comes from."""
+        bending = (f", bending impulses {self.bending_limit:.3g} s"
+                   if math.isfinite(self.bending_limit) else "")
         if integrator != "symplectic_euler":
-            return (f"{integrator} has no linear stability limit (A-stable; stiffness "
-                    f"2/omega_max = {self.stiffness_limit:.3g} s)")
+            return (f"{integrator} is A-stable on the threads (stiffness 2/omega_max = "
+                    f"{self.stiffness_limit:.3g} s){bending}")
         return (f"the analytical limit of {integrator} on this net is "
-                f"{self.explicit_limit:.3g} s (damping 2/gamma_max = {self.damping_limit:.3g} s, "
-                f"stiffness 2/omega_max = {self.stiffness_limit:.3g} s)")
+                f"{self.for_integrator(integrator):.3g} s (damping 2/gamma_max = "
+                f"{self.damping_limit:.3g} s, stiffness 2/omega_max = "
+                f"{self.stiffness_limit:.3g} s{bending})")
+
+
+def _explicit_step(gamma: float, omega: float) -> float:
+    """4 / (gamma + sqrt(gamma^2 + 4 omega^2)) [s], inf when both are 0."""
+    if gamma == 0 and omega == 0:
+        return math.inf
+    return 4.0 / (gamma + math.sqrt(gamma * gamma + 4.0 * omega * omega))
 
 
 def _taut_laplacian(model: NetModel, position: np.ndarray, weight: np.ndarray):
@@ -115,12 +138,21 @@ def _largest_eigenvalue(model: NetModel, position: np.ndarray, weight: np.ndarra
     return float(eigsh(sym, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0])
 
 
-def analytical_limits(model: NetModel, position: np.ndarray) -> Limits:
+def analytical_limits(model: NetModel, position: np.ndarray, bending: bool = False) -> Limits:
     """Step limits of the net with every thread taut along its direction at ``position`` [m],
-    shape (N, 3) (the initial state's directions are the deployed net's)."""
+    shape (N, 3) (the initial state's directions are the deployed net's); with ``bending``,
+    the bending impulses' limit too."""
     omega2 = _largest_eigenvalue(model, position, model.axial_stiffness)
     gamma = _largest_eigenvalue(model, position, model.axial_damping)
-    return Limits(omega_max=math.sqrt(max(omega2, 0.0)), gamma_max=max(gamma, 0.0))
+    bending_gamma = bending_omega = 0.0
+    if bending:
+        from .engines.base import rotational_rates
+
+        damping, frequency2 = rotational_rates(model)
+        bending_gamma = 2.0 * float(damping.max())
+        bending_omega = math.sqrt(2.0 * float(frequency2.max()))
+    return Limits(omega_max=math.sqrt(max(omega2, 0.0)), gamma_max=max(gamma, 0.0),
+                  bending_omega=bending_omega, bending_gamma=bending_gamma)
 
 
 def scene_limits(scenario: Scenario) -> Limits:
@@ -128,7 +160,8 @@ def scene_limits(scenario: Scenario) -> Limits:
     from .builder import build_model, initial_state
 
     model = build_model(scenario)
-    return analytical_limits(model, initial_state(scenario, model).position)
+    return analytical_limits(model, initial_state(scenario, model).position,
+                             scenario.bending.enabled)
 
 
 def is_stable(scenario: Scenario, dt: float, horizon: float) -> bool:

@@ -92,3 +92,16 @@ def test_bisection_brackets_the_stable_step_and_implicit_euler_has_no_limit():
     dt = 100 * limits.explicit_limit
     assert dt > limits.stiffness_limit
     assert is_stable(scene, dt, 0.05)
+
+
+def test_bending_impulses_limit_implicit_euler():
+    # Reference: the Gershgorin bound on the nodes' rotational modes (stability.py's doc): the
+    # bending springs are explicit in both integrators, so with bending even implicit Euler
+    # has a limit; below the (conservative) bound it runs, 3x above it diverges.
+    scene = small_scene(**{"net.fold_ratio": 1.0, "scene.duration": 0.1,
+                           "bending.enabled": True, "simulation.integrator": "implicit_euler"})
+    limits = scene_limits(scene)
+    assert limits.for_integrator("implicit_euler") == limits.bending_limit < math.inf
+    assert is_stable(scene, 0.9 * limits.bending_limit, 0.1)
+    assert not is_stable(scene, 3 * limits.bending_limit, 0.1)
+    assert math.isinf(scene_limits(small_scene()).for_integrator("implicit_euler"))
