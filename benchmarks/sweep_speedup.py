@@ -26,6 +26,7 @@ def main() -> None:
     out = output_dir(args)
     spec = load_sweep(SCENARIO_DIR / "sweep_example.toml")
 
+    load_before = os.getloadavg()
     start = time.perf_counter()
     serial = run_sweep(spec, out / "serial", serial=True)
     serial_s = time.perf_counter() - start
@@ -39,6 +40,12 @@ def main() -> None:
            "serial_s": serial_s, "dask_s": done - ready, "dask_with_cluster_start_s": done - start,
            "speedup": serial_s / (done - ready),
            "speedup_with_cluster_start": serial_s / (done - start),
+           # how busy the workers were, and how much slower each variant ran beside the other
+           # (2 workers on 2 shared cores): sum of variant walls over the sweep's wall
+           "worker_parallelism": sum(r["wall_s"] for r in parallel) / (done - ready),
+           "variant_slowdown_under_dask": (sum(r["wall_s"] for r in parallel)
+                                           / sum(r["wall_s"] for r in serial)),
+           "load_average_before_after": [load_before, os.getloadavg()],
            "statuses": [r["status"] for r in parallel],
            "same_measures": all(a["final_mouth_area_m2"] == b["final_mouth_area_m2"]
                                 for a, b in zip(serial, parallel, strict=True)),

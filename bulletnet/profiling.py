@@ -4,13 +4,14 @@ Two honest measurements, both off unless asked for:
 
 1. **Sections of the run loop**, timed from outside: the engine's ``advance`` (forces and
    integration, fused in one compiled loop), ``thread_loads`` (the tensions recorded each
-   frame), the recorder's ``append`` and its HDF5 ``flush``/``close``. :meth:`Profile.wrap`
+   frame), the recorder's ``append`` and its HDF5 ``flush``. :meth:`Profile.wrap`
    replaces those methods on the instances for the run, each section timed exclusive of the
    sections it calls (a flush inside an append counts as I/O, not recording).
 2. **The split inside the compiled step**, from a short calibration after the run on a copy
-   of its last state: the same number of steps timed once as the force kernels alone
-   (gravity, loads, axial threads, bending on its multirate schedule) and once as full engine
-   steps; the engine time is shared out between forces and integration in that ratio.
+   of its last state: the same number of steps timed as the force kernels alone (gravity,
+   loads, axial threads, bending on its multirate schedule) and as full engine steps, three
+   times interleaved; the engine time is shared out between forces and integration in the
+   median ratio.
 """
 
 from __future__ import annotations
@@ -24,8 +25,11 @@ from .forces.axial import axial_forces
 from .integrators import bending_weight, external_forces
 from .state import NetState
 
-CALIBRATION_S = 0.2
-"""Target wall time of each calibration loop [s]."""
+CALIBRATION_S = 0.4
+"""Target wall time of each kind of calibration loop, all pairs together [s]."""
+PAIRS = 3
+"""Interleaved (forces, full steps) timings of the calibration; the median ratio is used, so a
+moment of load on a shared machine does not skew the split."""
 
 
 class Profile:
@@ -99,30 +103,33 @@ def _seconds(run: Callable[[], None]) -> float:
 
 def step_split(engine, state: NetState) -> dict | None:
     """Calibrated share of the force kernels in one engine step, or None for an engine without
-    fixed steps. Returns ``{"steps", "force_s_per_step", "step_s_per_step"}`` [-, s, s]."""
+    fixed steps. Returns ``{"steps", "force_s_per_step", "step_s_per_step"}`` [-, s, s]: the
+    median-ratio pair of :data:`PAIRS` interleaved timings."""
     if engine.steps == 0 or engine.dt <= 0:
         return None
     from .integrators import Workspace
+
+    work = Workspace(engine.model.node_count, engine.model.thread_count)
+    quat, omega = engine.rotations(state)
 
     def advance(steps):
         copy = state.copy()
         engine.advance(copy, copy.time + steps * engine.dt)
 
-    advance(1)  # warm
-    per_step = _seconds(lambda: advance(100)) / 100
-    steps = max(100, int(CALIBRATION_S / max(per_step, 1e-9)))
-    full = _seconds(lambda: advance(steps)) / steps
-    work = Workspace(engine.model.node_count, engine.model.thread_count)
-    quat, omega = engine.rotations(state)
-
-    def forces(n):
-        _force_loop(n, engine.bending, engine.bending_every, state.position.copy(),
+    def forces(steps):
+        _force_loop(steps, engine.bending, engine.bending_every, state.position.copy(),
                     state.velocity.copy(), quat.copy(), omega.copy(), engine.arrays,
                     work.arrays(), engine.gravity, engine.external)
 
     forces(1)  # warm
-    return {"steps": steps, "force_s_per_step": _seconds(lambda: forces(steps)) / steps,
-            "step_s_per_step": full}
+    advance(1)
+    per_step = _seconds(lambda: advance(100)) / 100
+    steps = max(100, int(CALIBRATION_S / PAIRS / max(per_step, 1e-9)))
+    pairs = sorted(((_seconds(lambda: forces(steps)), _seconds(lambda: advance(steps)))
+                    for _ in range(PAIRS)), key=lambda pair: pair[0] / pair[1])
+    force_s, step_s = pairs[PAIRS // 2]
+    return {"steps": PAIRS * steps, "force_s_per_step": force_s / steps,
+            "step_s_per_step": step_s / steps}
 
 
 def report(profile: Profile, total_s: float, contact: bool) -> list[str]:

@@ -20,7 +20,7 @@ from .errors import DivergenceError, ScenarioError
 from .profiling import Profile, instrument, step_split
 from .recorder import Recorder
 from .scenario import Scenario, to_toml
-from .stability import analytical_limits
+from .stability import Limits, analytical_limits
 from .state import NetState
 
 MAX_RECORDING_BYTES = 2e9
@@ -98,7 +98,7 @@ def _check(state: NetState, limit: float) -> str:
 
 
 def _divergence(reason: str, state: NetState, dt: float, integrator: str,
-                limits) -> DivergenceError:
+                limits: Limits) -> DivergenceError:
     """The typed error of a diverged run, naming the step and the analytical limit (an
     adaptive run, ``dt`` 0, has none)."""
     if dt <= 0:

@@ -282,6 +282,9 @@ def plot_sweep(rows: list[dict], swept: tuple[str, ...], out: Path,
             if points:
                 x, y = zip(*points, strict=True)
                 ax.plot(x, y, "o", alpha=0.7)
+            else:
+                ax.text(0.5, 0.5, "no value in any run\n(not reached)", ha="center",
+                        va="center", transform=ax.transAxes, fontsize=8)
             ax.set_xlabel(key)
             ax.set_title(name, fontsize=9)
             ax.grid(True, alpha=0.3)
