@@ -112,6 +112,12 @@ def _add_bench(sub) -> None:
                        help="bending on/off; default: the scene's")
     bench.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        help="override a scene key (SI units, TOML syntax)")
+    bench.add_argument("--measures", nargs="+", default=["rmse"], metavar="NAME",
+                       help="scores against the reference: rmse (Eq. 14, position [m] and "
+                            "velocity [m/s]), mouth_area (mouth-area curve [m^2])")
+    bench.add_argument("--front-by", default="rmse_pos_avg", metavar="KEY",
+                       help="score of the Pareto front and the chart's axis, e.g. "
+                            "rmse_pos_avg [m] or mouth_area_rms [m^2]")
     bench.add_argument("--repeats", type=int, default=1, metavar="N",
                        help="timed repeats of each run (median reported)")
     bench.add_argument("--stability", action="store_true",
@@ -192,17 +198,25 @@ def cmd_sweep(args) -> int:
 def cmd_bench(args) -> int:
     from pathlib import Path
 
-    from .bench import bench, parse_method
+    from .bench import MEASURES, bench, parse_method
     from .errors import ScenarioError
 
     if args.repeats < 1:
         raise ScenarioError(f"--repeats {args.repeats}: expected an integer >= 1")
+    unknown = [m for m in args.measures if m not in MEASURES]
+    if unknown:
+        raise ScenarioError(f"--measures {unknown[0]}: expected one of {', '.join(MEASURES)}")
+    keys = [k for m in args.measures for k in MEASURES[m][1]]
+    if args.front_by not in keys:
+        raise ScenarioError(f"--front-by {args.front_by}: expected a key of the measures "
+                            f"chosen: {', '.join(keys)}")
     methods = [parse_method(m) for m in args.methods]
     flags = {"scene.duration": args.duration, "bending.enabled": args.bending}
     scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
     horizon = args.stability_horizon or scene.scene.duration if args.stability else None
-    doc = bench(scene, methods, sorted(args.dts), Path(args.out), repeats=args.repeats,
-                stability_horizon=horizon)
+    doc = bench(scene, methods, sorted(args.dts), Path(args.out),
+                [MEASURES[m][0] for m in args.measures], repeats=args.repeats,
+                stability_horizon=horizon, error_key=args.front_by)
     stem = Path(args.out) / (f"bench_{doc['scene']}" + ("_bending" if doc["bending"] else ""))
     print(f"Pareto front ({len(doc['pareto_front'])} runs): " + ", ".join(
         f"{r['method']} dt {r['dt_s']:.3g} s" if r["dt_s"] else r["method"]
