@@ -186,6 +186,16 @@ def warm_up(scene: str, variants: tuple[dict, ...]) -> None:
                 pass
 
 
+def estimated_cost(scene: str, overrides: dict) -> float:
+    """Relative cost of a variant [-]: nodes times steps, doubled with bending (its kernels
+    take about that much longer); for ordering work, not a prediction of seconds."""
+    from .scenario import load
+
+    s = load(scene, overrides)
+    steps = s.scene.duration / s.simulation.step if s.simulation.step > 0 else 1.0
+    return (s.net.nodes_per_side ** 2 + 4) * steps * (2.0 if s.bending.enabled else 1.0)
+
+
 def run_sweep(sweep: Sweep, out: Path, scheduler: str | None = None, workers: int = 2,
               serial: bool = False, log=None) -> list[dict]:
     """Run every variant (on Dask, or one after another in this process with ``serial``) and
@@ -204,7 +214,10 @@ def run_sweep(sweep: Sweep, out: Path, scheduler: str | None = None, workers: in
         return rows
     with dask_client(scheduler, workers) as client:
         client.run(warm_up, sweep.scene, sweep.variants)
-        futures = [client.submit(run_variant, *job, pure=False) for job in jobs]
+        # longest first, so that no long variant is left running alone at the end
+        jobs.sort(key=lambda job: -estimated_cost(sweep.scene, job[2]))
+        futures = [client.submit(run_variant, *job, pure=False, priority=len(jobs) - k)
+                   for k, job in enumerate(jobs)]
         rows = []
         from dask.distributed import as_completed
 
