@@ -70,6 +70,7 @@ def plot(doc: dict, path) -> None:
     n0 = doc["series"]["plain"]["runs"][0]
     ref = np.array([n0["nodes"], doc["series"]["plain"]["runs"][-1]["nodes"]], float)
     ax.loglog(ref, n0["wall_per_simulated_s"] * ref / ref[0], "k:", label="linear in N")
+    ax.xaxis.set_minor_formatter(plt.NullFormatter())
     ax.set_xlabel("nodes N = Ns^2 + 4 [-]")
     ax.set_ylabel("wall time per simulated second [s/s]")
     ax.set_title("deployment, fast engine, symplectic Euler 1e-6 s", fontsize=10)
