@@ -23,18 +23,12 @@ import bulletnet as bn
 from bulletnet.plots import plot_recordings
 
 
-def first_time(rec, values, threshold):
-    above = np.nonzero(values >= threshold)[0]
-    return float(rec.time[above[0]]) if above.size else None
-
-
 def main() -> None:
     p = parser(__doc__)
     p.add_argument("--bullet-horizon", type=float, default=0.05, help="[s]")
     args = p.parse_args()
     out = output_dir(args)
     base = bn.load_scenario("deployment")
-    side = (base.net.nodes_per_side - 1) * base.net.mesh_length
     doc = {"scene": "deployment", "duration_s": base.scene.duration}
 
     # plain and bending runs interleaved, so that the machine's drift hits both alike; the
@@ -68,7 +62,7 @@ def main() -> None:
     for name, rec in runs.items():
         area = bn.metrics.mouth_area(rec)
         k15 = int(np.argmin(np.abs(rec.time - 1.5)))
-        measures[name] = {"deployed_90pct_s": first_time(rec, area, 0.9 * side**2),
+        measures[name] = {"deployed_90pct_s": bn.metrics.deployed_time(rec, 0.9),
                           "mouth_area_1_5s_m2": float(area[k15]),
                           "max_mouth_area_m2": float(area.max())}
     doc["measures"] = measures

@@ -1,32 +1,21 @@
-"""What the benchmarks share: timing runs and the Eq. 14 error summary."""
+"""What the benchmarks share: timing runs (:func:`bulletnet.bench.timed`) and the Eq. 14 error
+summary."""
 
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
 from pathlib import Path
 
 import bulletnet as bn
+from bulletnet.bench import ERROR_KEYS, rmse_measure, timed
 
-ERROR_KEYS = ("rmse_pos_max", "rmse_pos_avg", "rmse_vel_max", "rmse_vel_avg")
-
-
-def timed(scene, path, repeats: int = 1):
-    """Run ``scene`` into ``path`` ``repeats`` times: (median wall [s], all walls, last result)."""
-    walls = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = bn.run(scene, path, force=True)
-        walls.append(time.perf_counter() - start)
-    return statistics.median(walls), walls, result
+__all__ = ["ERROR_KEYS", "errors", "output_dir", "parser", "timed"]
 
 
 def errors(path, reference) -> dict:
     """Eq. 14 RMSE (max and average over nodes) of the recording at ``path`` against a
     recording; keys in :data:`ERROR_KEYS` plus ``samples``."""
-    r = bn.metrics.rmse(bn.open_recording(path), reference)
-    return {k: r[k] for k in (*ERROR_KEYS, "samples")}
+    return rmse_measure(bn.open_recording(path), reference)
 
 
 def parser(doc: str) -> argparse.ArgumentParser:

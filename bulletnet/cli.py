@@ -1,4 +1,5 @@
-"""The ``bulletnet`` command line: run, params, compare, metrics, plot, view.
+"""The ``bulletnet`` command line: run, params, compare, metrics, plot, view, bench,
+stability, sweep.
 
 Errors are one line on stderr: exit code 2 for bad input, 3 for a diverged run, 130 for an
 interrupted one."""
@@ -61,6 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", metavar="FILE", help="recording to write [default: SCENE.h5]")
     run.add_argument("--force", action="store_true", help="overwrite an existing --out")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--profile", action="store_true",
+                     help="print where the wall time goes (forces, integration, contact, "
+                          "recording, I/O) [s]")
 
     params = sub.add_parser("params", help="print the derived model (Tables 5-7)")
     params.add_argument("scene")
@@ -100,7 +104,142 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument("--snapshots", type=float, nargs="+", metavar="S",
                       help="mouth snapshot times [s] (default: 7 evenly spaced)")
     view.add_argument("--force", action="store_true", help="overwrite an existing --html")
+    _add_bench(sub)
+    _add_stability(sub)
+    _add_sweep(sub)
     return parser
+
+
+DEFAULT_BENCH_DTS = (5e-7, 1e-6, 2e-6, 4e-6, 1e-5, 3e-5, 1e-4)
+"""Steps of the bench grid [s] unless --dts is given."""
+
+
+def _add_bench(sub) -> None:
+    bench = sub.add_parser("bench", help="speed against accuracy: a grid of (method, step) "
+                           "runs against a converged reference; JSON and a PNG chart")
+    bench.add_argument("scene", help="scene name or path to a .toml")
+    bench.add_argument("--methods", nargs="+", metavar="ENGINE:INTEGRATOR",
+                       default=["fast:symplectic_euler", "fast:implicit_euler"],
+                       help="methods to run, e.g. fast:implicit_euler bullet:symplectic_euler "
+                            "reference (default: both integrators on fast)")
+    bench.add_argument("--dts", nargs="+", type=_positive, metavar="S",
+                       default=list(DEFAULT_BENCH_DTS), help="time steps of the grid [s]")
+    bench.add_argument("--duration", type=_positive, metavar="S", help="simulated time [s]")
+    bench.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None,
+                       help="bending on/off; default: the scene's")
+    bench.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a scene key (SI units, TOML syntax)")
+    bench.add_argument("--measures", nargs="+", default=["rmse"], metavar="NAME",
+                       help="scores against the reference: rmse (Eq. 14, position [m] and "
+                            "velocity [m/s]), mouth_area (mouth-area curve [m^2])")
+    bench.add_argument("--front-by", default="rmse_pos_avg", metavar="KEY",
+                       help="score of the Pareto front and the chart's axis, e.g. "
+                            "rmse_pos_avg [m] or mouth_area_rms [m^2]")
+    bench.add_argument("--repeats", type=int, default=1, metavar="N",
+                       help="timed repeats of each run (median reported)")
+    bench.add_argument("--stability", action="store_true",
+                       help="also bisect each method's largest stable step and set it beside "
+                            "the analytical limits")
+    bench.add_argument("--stability-horizon", type=_positive, metavar="S",
+                       help="simulated time of each stability run [s] (default: --duration)")
+    bench.add_argument("--out", default="bench", metavar="DIR",
+                       help="folder for bench_SCENE[_bending].json/.png and the runs")
+
+
+def _add_stability(sub) -> None:
+    stability = sub.add_parser("stability", help="largest stable step of each method, "
+                               "bisected, beside the analytical limits")
+    stability.add_argument("scene", help="scene name or path to a .toml")
+    stability.add_argument("--methods", nargs="+", metavar="ENGINE:INTEGRATOR",
+                           default=["fast:symplectic_euler", "fast:implicit_euler"])
+    stability.add_argument("--horizon", type=_positive, metavar="S",
+                           help="simulated time of each trial run [s] (default: the scene's "
+                                "duration)")
+    stability.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None)
+    stability.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    stability.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+def cmd_stability(args) -> int:
+    from .bench import parse_method, stability_table
+
+    methods = [parse_method(m) for m in args.methods]
+    flags = {"bending.enabled": args.bending}
+    scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
+    log = None if args.json else print
+    rows = stability_table(scene, methods, args.horizon or scene.scene.duration, log=log)
+    if args.json:
+        print(json.dumps(rows, indent=2))
+    return 0
+
+
+def _add_sweep(sub) -> None:
+    sweep = sub.add_parser("sweep", help="run variants of a scene over Dask and gather a table "
+                           "of summary measures (CSV, Parquet with pyarrow) and plots")
+    sweep.add_argument("sweep", metavar="SWEEP.toml", help="sweep file (see "
+                       "scenarios/sweep_example.toml)")
+    sweep.add_argument("--scheduler", metavar="ADDRESS",
+                       help="Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: a local cluster)")
+    sweep.add_argument("--workers", type=int, default=2, metavar="N",
+                       help="worker processes of the local cluster")
+    sweep.add_argument("--serial", action="store_true",
+                       help="no Dask: run the variants one after another in this process")
+    sweep.add_argument("--out", default="sweep", metavar="DIR",
+                       help="folder for sweep.csv, runs/ and figures/")
+
+
+def cmd_sweep(args) -> int:
+    from pathlib import Path
+
+    from .errors import ScenarioError
+    from .sweep import load_sweep, plot_sweep, run_sweep, write_table
+
+    if args.workers < 1:
+        raise ScenarioError(f"--workers {args.workers}: expected an integer >= 1")
+    spec = load_sweep(args.sweep)
+    out = Path(args.out)
+    print(f"bulletnet: {len(spec.variants)} variants of {spec.scene} -> {out}", file=sys.stderr)
+    start = time.perf_counter()
+    rows = run_sweep(spec, out, args.scheduler, args.workers, args.serial,
+                     log=lambda text: print(text, file=sys.stderr))
+    wall = time.perf_counter() - start
+    paths = write_table(rows, out) + plot_sweep(rows, spec.swept, out)
+    counts = {s: sum(r["status"] == s for r in rows) for s in dict.fromkeys(
+        r["status"] for r in rows)}
+    print(f"{len(rows)} variants in {wall:.1f} s wall: "
+          + ", ".join(f"{n} {s}" for s, n in counts.items()))
+    print("\n".join(str(p) for p in paths))
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from pathlib import Path
+
+    from .bench import MEASURES, bench, parse_method
+    from .errors import ScenarioError
+
+    if args.repeats < 1:
+        raise ScenarioError(f"--repeats {args.repeats}: expected an integer >= 1")
+    unknown = [m for m in args.measures if m not in MEASURES]
+    if unknown:
+        raise ScenarioError(f"--measures {unknown[0]}: expected one of {', '.join(MEASURES)}")
+    keys = [k for m in args.measures for k in MEASURES[m][1]]
+    if args.front_by not in keys:
+        raise ScenarioError(f"--front-by {args.front_by}: expected a key of the measures "
+                            f"chosen: {', '.join(keys)}")
+    methods = [parse_method(m) for m in args.methods]
+    flags = {"scene.duration": args.duration, "bending.enabled": args.bending}
+    scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
+    horizon = args.stability_horizon or scene.scene.duration if args.stability else None
+    doc = bench(scene, methods, sorted(args.dts), Path(args.out),
+                [MEASURES[m][0] for m in args.measures], repeats=args.repeats,
+                stability_horizon=horizon, error_key=args.front_by)
+    stem = Path(args.out) / (f"bench_{doc['scene']}" + ("_bending" if doc["bending"] else ""))
+    print(f"Pareto front ({len(doc['pareto_front'])} runs): " + ", ".join(
+        f"{r['method']} dt {r['dt_s']:.3g} s" if r["dt_s"] else r["method"]
+        for r in doc["pareto_front"]))
+    print(f"-> {stem}.json, {stem}.png")
+    return 0
 
 
 def _scene(args, extra: dict | None = None):
@@ -126,13 +265,22 @@ def cmd_run(args) -> int:
     print(f"bulletnet: {scene.scene.name}: engine {scene.simulation.engine}, bending "
           f"{'on' if scene.bending.enabled else 'off'}, "
           f"{scene.scene.duration:g} s simulated -> {out}", file=sys.stderr)
-    result = run(scene, out, progress=progress, force=args.force)
+    profile = None
+    if args.profile:
+        from .profiling import Profile
+
+        profile = Profile()
+    result = run(scene, out, progress=progress, force=args.force, profile=profile)
     if progress:
         progress.done()
     steps = result.stats.get("steps", 0)
     print(f"{result.status}: {result.frames} frames, {steps} steps, "
           f"{result.wall_time_s:.2f} s wall, real-time factor "
           f"{scene.scene.duration / max(result.wall_time_s, 1e-9):.3g} -> {result.path}")
+    if profile is not None:
+        from .profiling import report
+
+        print("\n".join(report(profile, result.wall_time_s, scene.contact.enabled)))
     return 0
 
 
@@ -332,7 +480,9 @@ def _terminate(signum, frame):
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": cmd_run, "params": cmd_params, "compare": cmd_compare,
-               "metrics": cmd_metrics, "plot": cmd_plot, "view": cmd_view}[args.command]
+               "metrics": cmd_metrics, "plot": cmd_plot, "view": cmd_view,
+               "bench": cmd_bench, "stability": cmd_stability,
+               "sweep": cmd_sweep}[args.command]
     signal.signal(signal.SIGTERM, _terminate)
     try:
         return handler(args)

@@ -20,7 +20,12 @@ class DivergenceError(BulletnetError):
 
     exit_code = 3
 
-    def __init__(self, message: str, time: float):
+    def __init__(self, message: str, time: float, step: float | None = None,
+                 limit: float | None = None):
         super().__init__(message)
         self.time = time
         """Simulated time [s] of the last good state."""
+        self.step = step
+        """The step the run took [s]."""
+        self.limit = limit
+        """The integrator's analytical stability limit on this net [s] (inf if none)."""

@@ -3,6 +3,7 @@
 - mouth: the net's perimeter nodes projected on x-y (Figs. 4a, 6, 11);
 - mouth area (shoelace formula) and mouth diagonal (net corner 0 to net corner Ns^2 - 1, in
   the x-y projection) over time (Fig. 7b);
+- time to 90 % deployed: the first time the mouth area reaches 90 % of L^2;
 - net height (Eq. 13): z of the innermost node (the mean of the four central nodes for even
   Ns) minus the mean z of the four net corners (Figs. 4b, 7a);
 - RMSE per node (Eq. 14) and node-averaged RMSE over time (Eq. 15) between two recordings on
@@ -55,6 +56,18 @@ def net_height(rec: Recording) -> np.ndarray:
     ns = rec.nodes_per_side
     z = rec.position[..., 2]
     return z[:, center_nodes(ns)].mean(axis=1) - z[:, net_corners(ns)].mean(axis=1)
+
+
+def side_length(rec: Recording) -> float:
+    """Side L = (Ns - 1) l_mesh of the fully open net [m] (thread 0 is an inner thread)."""
+    return (rec.nodes_per_side - 1) * float(rec.rest_length[0])
+
+
+def deployed_time(rec: Recording, fraction: float = 0.9) -> float | None:
+    """First sample time [s] at which the mouth area reaches ``fraction`` of L^2; None if it
+    never does."""
+    above = np.nonzero(mouth_area(rec) >= fraction * side_length(rec) ** 2)[0]
+    return float(rec.time[above[0]]) if above.size else None
 
 
 def summary(rec: Recording) -> dict:

@@ -17,8 +17,10 @@ import numpy as np
 from .builder import build_model, initial_state
 from .engines import make_engine
 from .errors import DivergenceError, ScenarioError
+from .profiling import Profile, instrument, step_split
 from .recorder import Recorder
 from .scenario import Scenario, to_toml
+from .stability import Limits, analytical_limits
 from .state import NetState
 
 MAX_RECORDING_BYTES = 2e9
@@ -88,18 +90,27 @@ def speed_limit(s: Scenario, state: NetState) -> float:
     return 100.0 * (v0 + g * s.scene.duration + 1.0)
 
 
-def _check(state: NetState, limit: float, dt: float) -> None:
+def _check(state: NetState, limit: float) -> str:
+    """Why ``state`` has diverged (non-finite, or a node faster than ``limit`` [m/s]), or ""."""
     if not np.isfinite(state.position).all() or not np.isfinite(state.velocity).all():
-        raise DivergenceError(
-            f"diverged at t = {state.time:.6g} s: non-finite state with step {dt:.3g} s; "
-            "the step is likely too large for the thread stiffness and damping "
-            "(use a smaller --dt or the implicit_euler integrator)", state.time)
+        return "non-finite state"
     vmax = float(np.linalg.norm(state.velocity, axis=1).max())
     if vmax > limit:
-        raise DivergenceError(
-            f"diverged at t = {state.time:.6g} s: a node moves at {vmax:.3g} m/s "
-            f"(limit {limit:.3g} m/s) with step {dt:.3g} s; the step is likely too large "
-            "for the thread stiffness and damping", state.time)
+        return f"a node moves at {vmax:.3g} m/s (limit {limit:.3g} m/s)"
+    return ""
+
+
+def _divergence(reason: str, state: NetState, dt: float, integrator: str,
+                limits: Limits) -> DivergenceError:
+    """The typed error of a diverged run, naming the step and the analytical limit (an
+    adaptive run, ``dt`` 0, has none)."""
+    if dt <= 0:
+        return DivergenceError(f"diverged at t = {state.time:.6g} s: {reason} with the "
+                               "adaptive reference engine", state.time)
+    return DivergenceError(
+        f"diverged at t = {state.time:.6g} s: {reason} with step {dt:.3g} s; "
+        f"{limits.describe(integrator)}; use a smaller --dt or the implicit_euler integrator",
+        state.time, step=dt, limit=limits.for_integrator(integrator))
 
 
 def preflight(scenario: Scenario, out: str | os.PathLike | None, force: bool = False):
@@ -117,8 +128,10 @@ def preflight(scenario: Scenario, out: str | os.PathLike | None, force: bool = F
 
 
 def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
-        progress: Progress | None = None, force: bool = False) -> RunResult:
-    """Simulate ``scenario``; record to ``out`` (HDF5) if given.
+        progress: Progress | None = None, force: bool = False,
+        profile: Profile | None = None) -> RunResult:
+    """Simulate ``scenario``; record to ``out`` (HDF5) if given; with ``profile``, time the
+    run's sections into it (:mod:`bulletnet.profiling`).
 
     An existing ``out``, or a recording estimated above :data:`MAX_RECORDING_BYTES`, is an
     error unless ``force``. On Ctrl-C the recording is closed with
@@ -141,13 +154,20 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         }, oriented=state.oriented, debris=engine.debris,
             contact=scenario.contact.enabled)
         recorder.append(state, *engine.thread_loads(state), engine.contact_loads())
+    if profile is not None:
+        instrument(profile, engine, recorder)
     limit = speed_limit(scenario, state)
+    start_position = state.position.copy()
     status, message, error = "running", "", None
     start = _time.perf_counter()
     try:
         for t in times[1:]:
             engine.advance(state, float(t))
-            _check(state, limit, engine.dt)
+            reason = _check(state, limit)
+            if reason:
+                raise _divergence(reason, state, engine.dt, engine.integrator,
+                                  analytical_limits(model, start_position,
+                                                    scenario.bending.enabled))
             if recorder is not None:
                 recorder.append(state, *engine.thread_loads(state), engine.contact_loads())
             if progress is not None:
@@ -163,6 +183,10 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             status, message = "interrupted", "stopped by an internal error"
         stats = engine.stats()
         first = engine.contact_loads()["first_contact"]
+        if profile is not None:
+            profile.stop()
+            if status == "completed":
+                profile.split = step_split(engine, state)
         engine.close()
         path = None
         frames = 0

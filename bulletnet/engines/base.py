@@ -14,13 +14,22 @@ from ..scenario import Scenario
 from ..state import NetState
 
 
-def bending_interval(model: NetModel, dt: float, margin: float = 0.3) -> int:
-    """Steps between bending impulses: the largest n with n dt <= margin / max_i(rate_i), rate_i
-    the fastest rotational time scale of node i — the damping rate sum(c_b + c_t l^2) / J_i or
-    the frequency sqrt(sum(k_b + k_t l^2) / J_i) over its threads (clamped nodes excluded)."""
+def rotational_rates(model: NetModel) -> tuple[np.ndarray, np.ndarray]:
+    """Per node, the damping rate sum(c_b + c_t l^2) / J_i [1/s] and the squared frequency
+    sum(k_b + k_t l^2) / J_i [rad^2/s^2] of its rotation on its threads' bending and
+    transverse springs, each shape (N,) (zero for clamped nodes): half the Gershgorin bounds
+    of :func:`~bulletnet.integrators.rotational_bounds` over the node's inertia."""
     c_sum, k_sum = (0.5 * b for b in integrators.rotational_bounds(model))
     free = ~model.fixed
-    rate = np.maximum(c_sum / model.inertia, np.sqrt(k_sum / model.inertia))[free].max()
+    return np.where(free, c_sum / model.inertia, 0.0), np.where(free, k_sum / model.inertia, 0.0)
+
+
+def bending_interval(model: NetModel, dt: float, margin: float = 0.3) -> int:
+    """Steps between bending impulses: the largest n with n dt <= margin / max_i(rate_i), rate_i
+    the fastest rotational time scale of node i — the damping rate or the frequency of
+    :func:`rotational_rates` (clamped nodes excluded)."""
+    damping, frequency2 = rotational_rates(model)
+    rate = np.maximum(damping, np.sqrt(frequency2)).max()
     if rate <= 0:
         return 1
     return max(1, math.floor(margin / (rate * dt)))

@@ -1,0 +1,140 @@
+"""The speed/accuracy grid, its Pareto front, and the run profile."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+from conftest import small_scene
+from test_recording_cli import cli
+
+import bulletnet as bn
+from bulletnet.bench import (
+    REFERENCE_DT,
+    Method,
+    bench,
+    mouth_area_measure,
+    pareto_front,
+    parse_method,
+)
+from bulletnet.profiling import ENGINE, Profile
+from bulletnet.stability import scene_limits
+
+
+def test_pareto_front_is_the_set_of_non_dominated_runs():
+    # Reference: the definition, checked by brute force over every pair of a fixed grid.
+    rows = [{"stable": True, "wall_s": w, "rmse_pos_avg": e}
+            for w, e in [(1, 5), (2, 3), (3, 4), (4, 1), (5, 1), (2, 6), (6, 0.5)]]
+    rows.append({"stable": False, "wall_s": None, "rmse_pos_avg": None})
+    front = pareto_front(rows)
+    stable = [r for r in rows if r["stable"]]
+
+    def dominated(r):
+        return any(o["wall_s"] <= r["wall_s"] and o["rmse_pos_avg"] <= r["rmse_pos_avg"]
+                   and o is not r and (o["wall_s"], o["rmse_pos_avg"])
+                   != (r["wall_s"], r["rmse_pos_avg"]) for o in stable)
+
+    assert [r for r in stable if not dominated(r)] == front
+
+
+def test_bench_grid_converges_at_first_order_and_marks_divergence(tmp_path):
+    # Reference: the fine-step reference run (symplectic Euler at 2.5e-7 s). Symplectic Euler
+    # is first order, so its error against the reference grows as (h - h_ref) (to 10 %, both
+    # steps below the explicit limit); a step 3x above the analytical limit diverges and is
+    # recorded as such, not as a crash.
+    scene = small_scene(**{"net.fold_ratio": 1.0, "scene.duration": 0.05})
+    limit = scene_limits(scene).explicit_limit
+    dts = [5e-7, 1e-6, 3 * limit]
+    doc = bench(scene, [Method("fast", "symplectic_euler")], dts, tmp_path, log=lambda s: None)
+    rows = {r["dt_s"]: r for r in doc["runs"]}
+    ratio = rows[1e-6]["rmse_pos_avg"] / rows[5e-7]["rmse_pos_avg"]
+    expected = (1e-6 - REFERENCE_DT) / (5e-7 - REFERENCE_DT)  # e(h) ~ C (h - h_ref)
+    assert ratio == pytest.approx(expected, rel=0.1)
+    assert not rows[3 * limit]["stable"] and "diverged" in rows[3 * limit]["message"]
+    assert rows[1e-6]["steps"] == round(0.05 / 1e-6)
+    assert rows[1e-6]["real_time_factor"] == pytest.approx(0.05 / rows[1e-6]["wall_s"])
+    written = json.loads((tmp_path / "bench_deployment.json").read_text())
+    assert written["pareto_front"] == pareto_front(written["runs"])
+    assert (tmp_path / "bench_deployment.png").stat().st_size > 10_000
+    # a second bench reuses the reference only if it is the same scene at the same step
+    before = (tmp_path / "bench_deployment_runs" / "reference.h5").stat().st_mtime_ns
+    bench(scene, [Method("fast", "symplectic_euler")], [1e-6], tmp_path, log=lambda s: None)
+    assert (tmp_path / "bench_deployment_runs" / "reference.h5").stat().st_mtime_ns == before
+
+
+def test_mouth_area_measure_is_the_curve_difference(tmp_path):
+    # Reference: metrics.mouth_area of both recordings, differenced frame by frame; zero
+    # against itself.
+    a = bn.run(small_scene(), tmp_path / "a.h5").path
+    b = bn.run(small_scene(**{"launch.elevation": 30.0}), tmp_path / "b.h5").path
+    ra, rb = bn.open_recording(a), bn.open_recording(b)
+    assert mouth_area_measure(ra, ra) == {"mouth_area_rms": 0.0, "mouth_area_max": 0.0}
+    diff = bn.metrics.mouth_area(ra) - bn.metrics.mouth_area(rb)
+    got = mouth_area_measure(ra, rb)
+    assert got["mouth_area_max"] == pytest.approx(abs(diff).max(), rel=1e-12)
+    assert got["mouth_area_rms"] == pytest.approx((diff**2).mean() ** 0.5, rel=1e-12)
+    assert got["mouth_area_max"] > 0
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--measures", "area"], "--measures area"),
+    (["--measures", "mouth_area"], "--front-by rmse_pos_avg"),
+])
+def test_bad_bench_measures_are_one_line_errors(args, needle):
+    proc = cli("bench", "deployment", *args)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and needle in proc.stderr
+
+
+@pytest.mark.parametrize("text", ["fast", "fast:rk4", "vortex:symplectic_euler", "reference:x"])
+def test_bad_methods_are_one_line_errors(text):
+    with pytest.raises(bn.ScenarioError, match="ENGINE:INTEGRATOR"):
+        parse_method(text)
+    proc = cli("bench", "deployment", "--methods", text)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1
+
+
+def test_profile_accounts_for_the_run_loop(tmp_path):
+    # Reference: the run's own wall time. The timed sections are disjoint parts of the loop,
+    # so they add up to no more than it, and cover nearly all of it; the calibrated force
+    # kernels are part of a step, so they take less than a whole step.
+    profile = Profile()
+    result = bn.run(small_scene(**{"scene.duration": 0.1}), tmp_path / "p.h5", profile=profile)
+    measured = sum(profile.seconds.values())
+    assert measured <= result.wall_time_s
+    assert measured >= 0.9 * result.wall_time_s
+    assert profile.seconds[ENGINE] > 0
+    split = profile.split
+    assert 0 < split["force_s_per_step"] < split["step_s_per_step"]
+
+
+def test_profile_sections_are_exclusive():
+    # Reference: the wall clock around the outer call. A section that calls another is
+    # charged only its own time; the two add up to the whole call.
+    class Work:
+        def outer(self):
+            time.sleep(0.02)
+            self.inner()
+
+        def inner(self):
+            time.sleep(0.03)
+
+    work, profile = Work(), Profile()
+    profile.wrap(work, "outer", "outer")
+    profile.wrap(work, "inner", "inner")
+    start = time.perf_counter()
+    work.outer()
+    total = time.perf_counter() - start
+    assert profile.seconds["inner"] >= 0.03 and profile.seconds["outer"] >= 0.02
+    assert profile.seconds["outer"] + profile.seconds["inner"] == pytest.approx(total, abs=1e-3)
+    profile.stop()
+    work.outer()
+    assert profile.seconds["outer"] + profile.seconds["inner"] == pytest.approx(total, abs=1e-3)
+
+
+def test_cli_profile_names_every_section(tmp_path):
+    proc = cli("run", "deployment", "--set", "net.nodes_per_side=6", "--duration", "0.05",
+               "--out", str(tmp_path / "p.h5"), "--quiet", "--profile")
+    assert proc.returncode == 0, proc.stderr
+    for name in ("forces", "integration", "contact", "recording", "I/O"):
+        assert name in proc.stdout

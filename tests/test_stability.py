@@ -1,0 +1,114 @@
+"""Stability limits: the analytical bounds of bulletnet.stability against runs that blow up."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+from conftest import small_scene
+from test_recording_cli import cli
+
+import bulletnet as bn
+from bulletnet.engines import make_engine
+from bulletnet.stability import Limits, analytical_limits, is_stable, scene_limits
+
+
+def test_two_mass_thread_limits_match_closed_form():
+    # Reference: one taut thread between masses m1, m2 is one mode with
+    # omega^2 = k (1/m1 + 1/m2) and gamma = c (1/m1 + 1/m2) (reduced mass); the eigen-solver
+    # must find exactly that on a 2-node model.
+    scene = bn.load_scenario("cantilever")
+    model = bn.build_model(scene)
+    model = dataclasses.replace(model, fixed=np.zeros_like(model.fixed))
+    position = bn.initial_state(scene, model).position
+    limits = analytical_limits(model, position)
+    inv = 1.0 / model.mass[0] + 1.0 / model.mass[1]
+    assert limits.omega_max == pytest.approx(math.sqrt(model.axial_stiffness[0] * inv), rel=1e-12)
+    assert limits.gamma_max == pytest.approx(model.axial_damping[0] * inv, rel=1e-12)
+
+
+def test_explicit_limit_reduces_to_the_textbook_bounds():
+    # Reference: h < 4 / (gamma + sqrt(gamma^2 + 4 omega^2)) is 2/omega without damping and
+    # 2/gamma without stiffness, and never exceeds either.
+    assert Limits(omega_max=1e4, gamma_max=0.0).explicit_limit == pytest.approx(2e-4)
+    assert Limits(omega_max=0.0, gamma_max=1e6).explicit_limit == pytest.approx(2e-6)
+    both = Limits(omega_max=1e4, gamma_max=1e6)
+    assert both.explicit_limit < min(both.stiffness_limit, both.damping_limit)
+
+
+def _bilateral_flat_net():
+    """A 6 x 6 net laid flat at rest length with bilateral threads: linear in its stretch,
+    every thread active from the first step, so the linear analysis applies exactly."""
+    scene = small_scene(**{"net.fold_ratio": 1.0, "scene.duration": 0.05})
+    model = dataclasses.replace(bn.build_model(scene), bilateral=True)
+    return scene, model, bn.initial_state(scene, model)
+
+
+@pytest.mark.parametrize(("factor", "stable"), [(0.95, True), (1.05, False)])
+def test_symplectic_euler_fails_where_theory_says(factor, stable):
+    # Reference: the Jury conditions of symplectic Euler on the damped modes (stability.py's
+    # doc); with C proportional to K the bound is exact: 5 % below it the run stays bounded,
+    # 5 % above it the fastest mode grows without bound within 0.05 s.
+    scene, model, state = _bilateral_flat_net()
+    limit = analytical_limits(model, state.position).explicit_limit
+    engine = make_engine(scene.with_overrides({"simulation.dt": factor * limit}), model)
+    engine.advance(state, scene.scene.duration)
+    speed = np.linalg.norm(state.velocity, axis=1).max()
+    assert bool(np.isfinite(speed) and speed < 2 * scene.launch.corner_speed) == stable
+
+
+def test_tension_only_deployment_diverges_a_modest_factor_above_the_limit(tmp_path):
+    # Reference: the analytical all-taut limit. Tension-only threads cut the pushing half of a
+    # damper's overshoot, so the real net survives somewhat above the linear bound, but not 3x:
+    # the run stops with the typed error naming the step and the limit, recording 'diverged'.
+    scene = small_scene(**{"net.fold_ratio": 1.0, "scene.duration": 0.1})
+    limit = scene_limits(scene).explicit_limit
+    assert bn.run(scene.with_overrides({"simulation.dt": 0.9 * limit})).status == "completed"
+    with pytest.raises(bn.DivergenceError) as info:
+        bn.run(scene.with_overrides({"simulation.dt": 3 * limit}), tmp_path / "d.h5")
+    assert info.value.step == pytest.approx(3 * limit)
+    assert info.value.limit == pytest.approx(limit)
+    assert f"{limit:.3g} s" in str(info.value) and f"{3 * limit:.3g} s" in str(info.value)
+    assert bn.open_recording(tmp_path / "d.h5").status == "diverged"
+
+
+def test_bisection_brackets_the_stable_step_and_implicit_euler_has_no_limit():
+    # Reference: the measured largest stable step lies at or above the conservative linear
+    # bound; implicit Euler (A-stable) runs 100x above the explicit bound and beyond the
+    # undamped stiffness limit 2/omega_max without diverging.
+    proc = cli("stability", "deployment", "--set", "net.nodes_per_side=6", "--set",
+               "net.fold_ratio=1.0", "--horizon", "0.05", "--json")
+    assert proc.returncode == 0, proc.stderr
+    explicit, implicit = json.loads(proc.stdout)
+    limits = scene_limits(small_scene(**{"net.fold_ratio": 1.0}))
+    assert explicit["analytical_limit_s"] == pytest.approx(limits.explicit_limit)
+    assert limits.explicit_limit <= explicit["dt_stable_s"] < explicit["dt_unstable_s"]
+    assert explicit["dt_unstable_s"] <= 1.03 * explicit["dt_stable_s"]
+    assert implicit["analytical_limit_s"] is None and implicit["dt_unstable_s"] is None
+    scene = small_scene(**{"net.fold_ratio": 1.0, "simulation.integrator": "implicit_euler"})
+    dt = 100 * limits.explicit_limit
+    assert dt > limits.stiffness_limit
+    assert is_stable(scene, dt, 0.05)
+
+
+def test_bending_rotations_limit_only_the_explicit_method():
+    # Reference: the Gershgorin bound on the nodes' rotational modes (stability.py's doc):
+    # symplectic Euler's bending impulses run below the (conservative) bound and diverge 3x
+    # above it; implicit Euler, whose angular update is scaled by the same bounds, runs at
+    # 3x and at 100x it.
+    scene = small_scene(**{"net.fold_ratio": 1.0, "scene.duration": 0.1,
+                           "bending.enabled": True, "simulation.integrator": "implicit_euler"})
+    limits = scene_limits(scene)
+    assert math.isinf(limits.for_integrator("implicit_euler")) and limits.bending_limit < 1
+    assert is_stable(scene, 3 * limits.bending_limit, 0.1)
+    assert is_stable(scene, 100 * limits.bending_limit, 0.1)
+    dt = 0.9 * limits.explicit_limit  # the threads stable; the impulse interval n dt varies
+
+    def explicit(every):
+        return scene.with_overrides({"simulation.integrator": "symplectic_euler",
+                                     "bending.every": every})
+    assert is_stable(explicit(math.floor(0.9 * limits.bending_limit / dt)), dt, 0.1)
+    assert not is_stable(explicit(math.ceil(3 * limits.bending_limit / dt)), dt, 0.1)
