@@ -9,7 +9,10 @@ The grid runner is scene-agnostic: what a run is scored on is a list of *measure
 The reference is the scene run with symplectic Euler at :data:`REFERENCE_DT` (a quarter of the
 default step; with bending, the bending springs evaluated every step): first order, so its own
 error is about that of a run at twice its step against it (Richardson), which the grid shows
-when it holds that step.
+when it holds that step. A scene with contact (the capture) is chaotic once the net touches:
+its reference is implicit Euler at :data:`REFERENCE_DT_CONTACT` (a quarter of the capture's
+step; symplectic Euler would need 1e-6 s steps), and it is scored on aggregate measures
+(``--measures first_contact wrap mouth_area``).
 """
 
 from __future__ import annotations
@@ -31,6 +34,16 @@ from .scenario import ENGINES, INTEGRATORS, Scenario, to_toml
 REFERENCE_DT = 2.5e-7
 """Step of the converged reference run [s] (symplectic Euler)."""
 
+REFERENCE_DT_CONTACT = 1.25e-4
+"""Step of the reference run of a scene with contact [s] (implicit Euler)."""
+
+
+def reference_method(scene: Scenario) -> tuple[str, float]:
+    """(integrator, step [s]) of ``scene``'s converged reference run."""
+    if scene.contact.enabled:
+        return "implicit_euler", REFERENCE_DT_CONTACT
+    return "symplectic_euler", REFERENCE_DT
+
 VORTEX_DEPLOYMENT = {
     "duration_s": 3.0,
     "runs": [
@@ -41,6 +54,15 @@ VORTEX_DEPLOYMENT = {
 """The paper's Vortex runs of the 3 s deployment (Sec. 4: 44 min 18 s, 9 s, 1 h 25 min of
 wall time, at the step ``dt`` [s]; Table 2's average position RMSE [m] against MATLAB where
 the paper gives one)."""
+
+VORTEX_CAPTURE = {
+    "duration_s": 120.0,
+    "runs": [
+        {"bending": False, "dt": "1/60", "wall_s": 540.0, "rmse_pos_avg_m": None},
+        {"bending": True, "dt": "1/60", "wall_s": 4800.0, "rmse_pos_avg_m": None},
+    ]}
+"""The paper's Vortex runs of the 120 s capture (Sec. 5: about 9 min, and 1 h 20 min with
+bending, at dt = 1/60 s; accuracy not reported)."""
 
 ERROR_KEYS = ("rmse_pos_max", "rmse_pos_avg", "rmse_vel_max", "rmse_vel_avg")
 
@@ -69,6 +91,26 @@ def mouth_area_measure(run: Recording, reference: Recording) -> dict:
             "mouth_area_max": float(np.abs(diff).max())}
 
 
+def first_contact_measure(run: Recording, reference: Recording) -> dict:
+    """|first-contact time of ``run`` - the reference's| [s] (``first_contact_error``; inf if
+    only one of them touches the debris)."""
+    from .metrics import first_contact_time
+
+    a, b = first_contact_time(run), first_contact_time(reference)
+    error = math.inf if (a is None) != (b is None) else abs(a - b) if a is not None else 0.0
+    return {"first_contact_error": error}
+
+
+def wrap_measure(run: Recording, reference: Recording) -> dict:
+    """Largest and RMS difference of the wrap measure (fraction of directions from the
+    debris covered by the net) on the common frames [-] (``wrap_max``, ``wrap_rms``)."""
+    from .metrics import common_times, wrap
+
+    ia, ib = common_times(run, reference)
+    diff = wrap(run)[ia] - wrap(reference)[ib]
+    return {"wrap_max": float(np.abs(diff).max()), "wrap_rms": float(np.sqrt(np.mean(diff**2)))}
+
+
 MEASURES: dict[str, tuple[Measure, dict[str, str]]] = {
     "rmse": (rmse_measure, {"rmse_pos_avg": "average position RMSE (Eq. 14) [m]",
                             "rmse_pos_max": "largest node position RMSE (Eq. 14) [m]",
@@ -76,6 +118,10 @@ MEASURES: dict[str, tuple[Measure, dict[str, str]]] = {
                             "rmse_vel_max": "largest node velocity RMSE (Eq. 14) [m/s]"}),
     "mouth_area": (mouth_area_measure, {"mouth_area_rms": "RMS mouth-area difference [m^2]",
                                         "mouth_area_max": "largest mouth-area difference [m^2]"}),
+    "first_contact": (first_contact_measure,
+                      {"first_contact_error": "first-contact time error [s]"}),
+    "wrap": (wrap_measure, {"wrap_max": "largest wrap difference [-]",
+                            "wrap_rms": "RMS wrap difference [-]"}),
 }
 """Measures by name (``bulletnet bench --measures``): the function and the keys it writes,
 each with its axis label and unit."""
@@ -132,11 +178,12 @@ def timed(scene: Scenario, path, repeats: int = 1):
     return statistics.median(walls), walls, result
 
 
-def reference_run(scene: Scenario, path: Path, dt: float = REFERENCE_DT) -> Recording:
-    """The converged reference of ``scene`` at ``path``: reused if the file there holds exactly
-    this scene at step ``dt`` [s], run otherwise."""
+def reference_run(scene: Scenario, path: Path) -> Recording:
+    """The converged reference of ``scene`` (:func:`reference_method`) at ``path``: reused if
+    the file there holds exactly this scene at that step, run otherwise."""
+    integrator, dt = reference_method(scene)
     fine = scene.with_overrides({"simulation.engine": "fast",
-                                 "simulation.integrator": "symplectic_euler",
+                                 "simulation.integrator": integrator,
                                  "simulation.dt": dt,
                                  **({"bending.every": 1} if scene.bending.enabled else {})})
     if path.exists():
@@ -245,8 +292,9 @@ def plot_bench(doc: dict, path: Path) -> Path:
     front = doc["pareto_front"]
     ax.plot([r[error_key] for r in front], [r["wall_s"] for r in front], "s", ms=11,
             mfc="none", mec="black", label="Pareto front")
-    scale = doc["simulated_s"] / VORTEX_DEPLOYMENT["duration_s"]
-    for run in VORTEX_DEPLOYMENT["runs"]:
+    vortex = doc["vortex_paper"]
+    scale = doc["simulated_s"] / vortex["duration_s"]
+    for run in vortex["runs"]:
         if run["bending"] != doc["bending"]:
             continue
         label = f"Vortex (paper), dt {run['dt']} s"
@@ -344,22 +392,24 @@ def bench(scene: Scenario, methods: Sequence[Method], dts: Sequence[float], out:
     stem = f"bench_{scene.scene.name}" + ("_bending" if scene.bending.enabled else "")
     runs_dir = out / f"{stem}_runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
-    log(f"reference: symplectic Euler at {REFERENCE_DT:g} s ...")
+    integrator, reference_dt = reference_method(scene)
+    log(f"reference: {integrator} at {reference_dt:g} s ...")
     start = time.perf_counter()
     reference = reference_run(scene, runs_dir / "reference.h5")
     log(f"reference ready ({time.perf_counter() - start:.1f} s)")
     rows = run_grid(scene, methods, dts, reference, runs_dir, measures, repeats, log)
     doc = {"scene": scene.scene.name, "bending": scene.bending.enabled,
            "simulated_s": scene.scene.duration, "nodes_per_side": scene.net.nodes_per_side,
-           "reference": {"engine": "fast", "integrator": "symplectic_euler",
-                         "dt_s": REFERENCE_DT, "bending_every": 1 if scene.bending.enabled
+           "reference": {"engine": "fast", "integrator": integrator,
+                         "dt_s": reference_dt, "bending_every": 1 if scene.bending.enabled
                          else None},
            "repeats": repeats, "machine": platform.machine(), "cpus": _cpus(),
            "bulletnet_version": __version__, "runs": rows,
            "units": {"dt_s": "s", "wall_s": "s", "rmse_pos_max": "m", "rmse_pos_avg": "m",
                      "rmse_vel_max": "m/s", "rmse_vel_avg": "m/s", "mouth_area_rms": "m^2",
-                     "mouth_area_max": "m^2", "real_time_factor": "-"},
-           "vortex_paper": VORTEX_DEPLOYMENT}
+                     "mouth_area_max": "m^2", "real_time_factor": "-",
+                     "first_contact_error": "s", "wrap_max": "-", "wrap_rms": "-"},
+           "vortex_paper": VORTEX_CAPTURE if scene.contact.enabled else VORTEX_DEPLOYMENT}
     doc["error_key"] = error_key
     doc["pareto_front"] = pareto_front(rows, error_key)
     if stability_horizon is not None:

@@ -131,10 +131,12 @@ def _add_bench(sub) -> None:
                        help="override a scene key (SI units, TOML syntax)")
     bench.add_argument("--measures", nargs="+", default=["rmse"], metavar="NAME",
                        help="scores against the reference: rmse (Eq. 14, position [m] and "
-                            "velocity [m/s]), mouth_area (mouth-area curve [m^2])")
+                            "velocity [m/s]), mouth_area (mouth-area curve [m^2]); with "
+                            "debris: first_contact (time error [s]), wrap (wrap difference)")
     bench.add_argument("--front-by", default="rmse_pos_avg", metavar="KEY",
                        help="score of the Pareto front and the chart's axis, e.g. "
-                            "rmse_pos_avg [m] or mouth_area_rms [m^2]")
+                            "rmse_pos_avg [m], mouth_area_rms [m^2], wrap_rms [-] or "
+                            "first_contact_error [s]")
     bench.add_argument("--repeats", type=int, default=1, metavar="N",
                        help="timed repeats of each run (median reported)")
     bench.add_argument("--stability", action="store_true",

@@ -138,3 +138,29 @@ def test_cli_profile_names_every_section(tmp_path):
     assert proc.returncode == 0, proc.stderr
     for name in ("forces", "integration", "contact", "recording", "I/O"):
         assert name in proc.stdout
+
+
+def test_capture_bench_scores_aggregates_against_a_fine_implicit_reference(tmp_path):
+    # Reference: the contact scene's own converged run (implicit Euler at 1.25e-4 s). The
+    # first-contact error of a step h is at most about h (contact is found to the step) plus
+    # the deployment's first-order drift; a run scored against itself scores exactly zero.
+    from bulletnet.bench import REFERENCE_DT_CONTACT, first_contact_measure, wrap_measure
+
+    scene = bn.load_scenario("capture", {
+        "net.nodes_per_side": 6, "debris.position": [0.0, 0.0, 3.0],
+        "debris.velocity": [0.0, 0.0, -2.0], "scene.duration": 0.8,
+        "simulation.record_rate": 20.0})
+    doc = bench(scene, [Method("fast", "implicit_euler")], [1e-3, 5e-4], tmp_path,
+                measures=[first_contact_measure, wrap_measure], error_key="wrap_rms",
+                log=lambda s: None)
+    assert doc["reference"]["integrator"] == "implicit_euler"
+    assert doc["reference"]["dt_s"] == REFERENCE_DT_CONTACT
+    assert doc["vortex_paper"]["duration_s"] == 120.0
+    rows = {r["dt_s"]: r for r in doc["runs"]}
+    for dt, row in rows.items():
+        assert row["stable"] and row["first_contact_error"] <= 2 * dt
+        assert 0.0 <= row["wrap_rms"] <= row["wrap_max"] <= 1.0
+    ref = bn.open_recording(tmp_path / "bench_capture_runs" / "reference.h5")
+    assert bn.metrics.first_contact_time(ref) is not None
+    assert first_contact_measure(ref, ref) == {"first_contact_error": 0.0}
+    assert wrap_measure(ref, ref) == {"wrap_max": 0.0, "wrap_rms": 0.0}
