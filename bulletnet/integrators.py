@@ -243,17 +243,26 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     _precondition(block_inv, fixed, r, z)
     d[:] = z
     rz = _dot(r, z)
+    rr = _dot(r, r)
     for _ in range(4 * n):
-        if np.sqrt(_dot(r, r)) <= tol * rhs_norm:
+        if np.sqrt(rr) <= tol * rhs_norm:
             break
         _apply_blocks(d, pairs, along, across, axis, mass, fixed, ad)
         alpha = rz / _dot(d, ad)
-        for i in range(n):
+        rz_new = rr = 0.0
+        for i in range(n):  # one pass: update, precondition (block Jacobi), dot products
             for a in range(3):
                 dv[i, a] += alpha * d[i, a]
                 r[i, a] -= alpha * ad[i, a]
-        _precondition(block_inv, fixed, r, z)
-        rz_new = _dot(r, z)
+            r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
+            if fixed[i]:
+                z[i, 0], z[i, 1], z[i, 2] = 0.0, 0.0, 0.0
+            else:
+                for a in range(3):
+                    z[i, a] = block_inv[i, a, 0] * r0 + block_inv[i, a, 1] * r1 \
+                        + block_inv[i, a, 2] * r2
+            rz_new += r0 * z[i, 0] + r1 * z[i, 1] + r2 * z[i, 2]
+            rr += r0 * r0 + r1 * r1 + r2 * r2
         beta = rz_new / rz
         rz = rz_new
         for i in range(n):
