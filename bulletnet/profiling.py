@@ -11,7 +11,8 @@ Two honest measurements, both off unless asked for:
    of its last state: the same number of steps timed as the force kernels alone (gravity,
    loads, axial threads, bending on its multirate schedule) and as full engine steps, three
    times interleaved; the engine time is shared out between forces and integration in the
-   median ratio.
+   median ratio. With contact, full steps with the contact stage switched off are timed too
+   (interleaved the same way), and the difference is the contact's share.
 """
 
 from __future__ import annotations
@@ -121,15 +122,29 @@ def step_split(engine, state: NetState) -> dict | None:
                     state.velocity.copy(), quat.copy(), omega.copy(), engine.arrays,
                     work.arrays(), engine.gravity, engine.external)
 
+    flags = engine.contact.arrays[20]
+    saved = flags.copy()
+
+    def without_contact(steps):
+        flags[:] = False
+        try:
+            advance(steps)
+        finally:
+            flags[:] = saved
+
     forces(1)  # warm
     advance(1)
     per_step = _seconds(lambda: advance(100)) / 100
     steps = max(100, int(CALIBRATION_S / PAIRS / max(per_step, 1e-9)))
-    pairs = sorted(((_seconds(lambda: forces(steps)), _seconds(lambda: advance(steps)))
-                    for _ in range(PAIRS)), key=lambda pair: pair[0] / pair[1])
-    force_s, step_s = pairs[PAIRS // 2]
-    return {"steps": PAIRS * steps, "force_s_per_step": force_s / steps,
-            "step_s_per_step": step_s / steps}
+    timings = sorted(((_seconds(lambda: forces(steps)), _seconds(lambda: advance(steps)),
+                       _seconds(lambda: without_contact(steps)) if saved.any() else 0.0)
+                      for _ in range(PAIRS)), key=lambda t: t[0] / t[1])
+    force_s, step_s, free_s = timings[PAIRS // 2]
+    out = {"steps": PAIRS * steps, "force_s_per_step": force_s / steps,
+           "step_s_per_step": step_s / steps}
+    if saved.any():
+        out["contact_s_per_step"] = max(0.0, step_s - free_s) / steps
+    return out
 
 
 def report(profile: Profile, total_s: float, contact: bool) -> list[str]:
@@ -142,8 +157,13 @@ def report(profile: Profile, total_s: float, contact: bool) -> list[str]:
     rows = []
     if split is not None:
         share = min(1.0, split["force_s_per_step"] / split["step_s_per_step"])
+        touch = min(1.0 - share, split.get("contact_s_per_step", 0.0)
+                    / split["step_s_per_step"])
         rows += [("forces (gravity, threads, bending)", engine * share),
-                 ("integration (velocity/position update, solver)", engine * (1 - share))]
+                 ("integration (velocity/position update, solver)",
+                  engine * (1 - share - touch))]
+        if contact:
+            rows.append(("contact (collision, normal law, friction)", engine * touch))
     else:
         rows.append((ENGINE + " (adaptive: not split)", engine))
     rows += [(name, sections.get(name, 0.0)) for name in (LOADS, RECORDING, IO)]
@@ -156,6 +176,6 @@ def report(profile: Profile, total_s: float, contact: bool) -> list[str]:
         lines.append(f"  (split of the engine step from {split['steps']} calibration steps: "
                      f"forces {split['force_s_per_step'] * 1e6:.3g} us of "
                      f"{split['step_s_per_step'] * 1e6:.3g} us a step)")
-    lines.append("  contact: " + ("inside the engine step (not timed apart)" if contact
-                                  else "none, the scene has no contact"))
+    if not contact:
+        lines.append("  contact: none, the scene has no contact")
     return lines

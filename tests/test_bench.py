@@ -164,3 +164,15 @@ def test_capture_bench_scores_aggregates_against_a_fine_implicit_reference(tmp_p
     assert bn.metrics.first_contact_time(ref) is not None
     assert first_contact_measure(ref, ref) == {"first_contact_error": 0.0}
     assert wrap_measure(ref, ref) == {"wrap_max": 0.0, "wrap_rms": 0.0}
+
+
+def test_cli_profile_times_contact_apart(tmp_path):
+    # Reference: the sections are exclusive and add up to the run loop (percentages sum to
+    # 100 to rounding), the contact's share measured against steps with contact switched off.
+    proc = cli("run", "capture", "--set", "net.nodes_per_side=6", "--set",
+               "debris.position=[0, 0, 3]", "--set", "debris.velocity=[0, 0, -2]",
+               "--duration", "1", "--out", str(tmp_path / "p.h5"), "--quiet", "--profile")
+    assert proc.returncode == 0, proc.stderr
+    rows = [line for line in proc.stdout.splitlines() if line.rstrip().endswith("%")]
+    assert any(line.strip().startswith("contact (") for line in rows)
+    assert sum(float(line.split()[-2]) for line in rows) == pytest.approx(100.0, abs=0.5)
