@@ -17,7 +17,7 @@ from .panel import Panel
 from .replay import Replay
 from .scene import build_scene
 
-WEB = Path(__file__).parent / "web"
+WEB = Path(__file__).resolve().parents[2] / "web"
 """What the HTML export adds to viser's client: the panel's script and style, the index."""
 META = "bulletnet-replay"
 """Name of the ``<meta>`` tag that marks a file as a replay (its content: JSON summary)."""
