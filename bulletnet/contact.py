@@ -8,7 +8,12 @@ step's other forces, then friction acts on the slip).
 Collision work is only done where something can touch: a node is tested against the debris
 only when its step can reach the debris' bounding sphere, and node pairs come from a Verlet
 list (pairs closer than their radii plus ``contact.skin``), rebuilt when a node has moved more
-than half the skin since the last build.
+than 0.4 skin since the last build.
+
+An overlap found at the start of a step that the last step's exact solution did not predict
+(the step linearizes the geometry: a fixed normal, a node sliding into a concave corner, a
+pair passing tangentially) is removed by moving the node (:func:`overlap_error`), not by the
+contact spring; runs count these projections.
 """
 
 from __future__ import annotations
@@ -44,7 +49,9 @@ class ContactSetup:
     arrays: tuple
     """The arrays the compiled stage unpacks (see :func:`setup`)."""
     has_debris: bool
+    """Whether nodes collide with the debris."""
     self_contact: bool
+    """Whether nodes collide with each other."""
 
     @property
     def enabled(self) -> bool:
