@@ -13,7 +13,7 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from . import metrics
+from . import kernel_cache, metrics  # noqa: F401 (kernel_cache first: it points numba's cache)
 from .builder import build_model, initial_state
 from .debris import Debris, load_debris
 from .errors import BulletnetError, DivergenceError, RecordingError, ScenarioError
