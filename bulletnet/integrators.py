@@ -89,12 +89,15 @@ class Workspace:
         """Bending forces of the last evaluation [N], shape (N, 3)."""
         self.step_count = np.zeros(1, dtype=np.int64)
         """Steps taken, for the bending schedule [-]."""
+        self.gain = np.zeros(n)
+        """Angular velocity change per unit torque of a bending impulse [rad/(N m s)],
+        shape (N,) (:func:`angular_gains`)."""
 
     def arrays(self) -> tuple:
         """The scratch arrays in the order the compiled kernels unpack them."""
         return (self.force, self.torque, self.tension, self.shear, self.along, self.across,
                 self.axis, self.dv, self.cg, self.block_inv, self.cg_iterations, self.bend,
-                self.step_count)
+                self.step_count, self.gain)
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -200,7 +203,7 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
      bilateral, inv_mass, radius, rot_c, rot_k) = model
     (force, torque, tension, shear, along, across, axis, dv, cg, block_inv, iterations,
-     bend, step_count) = work
+     bend, step_count, gain) = work
     n = pos.shape[0]
     axial_linearization(pos, vel, pairs, rest, k_a, c_a, bilateral, dt, force, tension, along,
                         across, axis)
@@ -298,6 +301,19 @@ def symplectic_increment(pos, vel, model, work, dt):
 
 
 @nb.njit(cache=True, error_model="numpy")
+def angular_gains(method, weight, dt, model, gain):
+    """Each node's angular velocity change per unit torque [rad/(N m s)] of a bending impulse
+    of ``weight`` steps of ``dt`` [s], into ``gain`` (N,): dt / J for symplectic Euler; for
+    implicit Euler the rotations' own damping and stiffness are implicit on the diagonal,
+    scaled by their Gershgorin bounds, dt / (J + h C_g + h^2 K_g) with h = weight dt (stable
+    at any step). Zero for clamped nodes."""
+    inertia, fixed, rot_c, rot_k = model[9], model[11], model[16], model[17]
+    h = dt * weight if method == IMPLICIT_EULER else 0.0
+    for i in range(gain.shape[0]):
+        gain[i] = 0.0 if fixed[i] else dt / (inertia[i] + h * rot_c[i] + h * h * rot_k[i])
+
+
+@nb.njit(cache=True, error_model="numpy")
 def bending_weight(bending, every, work):
     """Weight of the bending forces this step: ``every`` on every ``every``-th step (an impulse
     standing for the soft bending springs over that interval), 0 otherwise or without bending."""
@@ -330,9 +346,8 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
     constant, so the orientations are advanced once over the whole interval (exactly the
     same rotation)."""
     n = pos.shape[0]
-    mass, inertia, fixed = model[0], model[9], model[11]
-    radius, rot_c, rot_k = model[15], model[16], model[17]
-    torque, dv = work[1], work[7]
+    mass, fixed, radius = model[0], model[11], model[15]
+    torque, dv, gain = work[1], work[7], work[13]
     flags = contact[20]
     touching = flags[0] or flags[1]
     pending = 0  # steps of rotation not yet applied to quat
@@ -354,14 +369,10 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
             contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t0 + step * dt)
         if bending:
             if weight > 0.0:
-                # implicit_euler: the rotations' own damping and stiffness implicit on the
-                # diagonal, scaled by their Gershgorin bounds (stable at any step)
-                h = dt * weight if method == IMPLICIT_EULER else 0.0
+                angular_gains(method, weight, dt, model, gain)
                 for i in range(n):
-                    if not fixed[i]:
-                        scale = dt / (inertia[i] + h * rot_c[i] + h * h * rot_k[i])
-                        for a in range(3):
-                            omega[i, a] += scale * torque[i, a]
+                    for a in range(3):
+                        omega[i, a] += gain[i] * torque[i, a]
             pending += 1
         taken += 1
     if pending > 0:

@@ -28,7 +28,7 @@ import numpy as np
 
 from .. import integrators
 from ..contact import CLASS_OF_KIND
-from ..debris import collision_shape, create_body, read_state
+from ..debris import body_origin, collision_shape, create_body, read_state
 from ..model import NodeKind
 from ..state import NetState
 from .base import Engine
@@ -56,7 +56,6 @@ class BulletEngine(Engine):
         self.materials = (fit(scenario, model, self.debris is not None)
                           if scenario.contact.enabled else None)
         """Per-body contact values fitted to the pair tables (with contact)."""
-        self._torque_scale = None
 
     def _create(self, state: NetState) -> None:
         c, m = self.client, self.model
@@ -80,8 +79,6 @@ class BulletEngine(Engine):
                 self._set_material(body, CLASS_OF_KIND[NodeKind(m.kind[i])])
             self.bodies.append(body)
         if self.debris is not None:
-            from ..debris import body_origin
-
             shape = (collision_shape(c, self.debris) if self.scenario.contact.enabled
                      else -1)
             self.debris_body = create_body(c, self.debris, body_origin(state.debris, self.debris),
@@ -140,13 +137,9 @@ class BulletEngine(Engine):
             for body, f, x in zip(self.bodies, force.tolist(), state.position.tolist(),
                                   strict=True):
                 apply(body, -1, f, x, frame)
-            if weight > 0.0:
-                torque = w.torque
-                if method == integrators.IMPLICIT_EULER:  # as the fast engine's rotations
-                    h = dt * weight
-                    torque = torque * (self.model.inertia / (
-                        self.model.inertia + h * self.arrays[16] + h * h * self.arrays[17])
-                                       )[:, None]
+            if weight > 0.0:  # PyBullet's update is dt tau / J: the fast engine's gain, as torque
+                integrators.angular_gains(method, weight, dt, self.arrays, w.gain)
+                torque = w.torque * (w.gain * self.model.inertia / dt)[:, None]
                 for body, tau in zip(self.bodies, torque.tolist(), strict=True):
                     apply_torque(body, -1, tau, frame)
             c.stepSimulation()
