@@ -25,6 +25,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from .debris import rotation_matrix
 from .errors import RecordingError
 from .recording import Recording
 from .topology import center_nodes, net_corners, perimeter
@@ -128,24 +129,16 @@ def _require(rec: Recording, group: str) -> dict:
     return data
 
 
-def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors v (..., 3) by unit quaternions q (..., 4) (x, y, z, w)."""
-    u, w = q[..., :3], q[..., 3:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
 def debris_axis(rec: Recording) -> np.ndarray:
     """The debris' long (body y) axis in the world [-], shape (T, 3)."""
-    q = _require(rec, "debris")["orientation"]
-    return _rotate(q, np.broadcast_to([0.0, 1.0, 0.0], (q.shape[0], 3)))
+    return rotation_matrix(_require(rec, "debris")["orientation"])[..., 1]
 
 
 def debris_center_of_mass(rec: Recording) -> np.ndarray:
     """World position of the debris' centre of mass [m], shape (T, 3)."""
     d = _require(rec, "debris")
     com = np.asarray(d["attrs"]["center_of_mass"], dtype=float)
-    return d["position"] + _rotate(d["orientation"], np.broadcast_to(com, d["position"].shape))
+    return d["position"] + rotation_matrix(d["orientation"]) @ com
 
 
 def first_contact_time(rec: Recording) -> float | None:

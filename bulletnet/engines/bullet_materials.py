@@ -50,7 +50,8 @@ def fit(s: Scenario, model: NetModel, has_debris: bool) -> BodyMaterials:
     """Fit the per-class values (friction to mu_k: PyBullet has one coefficient, and a
     capture slides far more than it sticks)."""
     k, c, _, mu_k = pair_tables(s, model)
-    present = [has_debris] + [bool(np.any(model.kind == kind)) for kind in (3, 2, 1, 0)]
+    # a node class is in the net iff its pair with itself is in the table
+    present = [has_debris] + [bool(k[c, c] > 0) for c in range(1, 5)]
     pairs = [(i, j) for i in range(5) for j in range(i, 5)
              if present[i] and present[j] and not (i == j == 0)]
     kt = np.array([k[i, j] for i, j in pairs])
