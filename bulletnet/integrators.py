@@ -1,7 +1,8 @@
 """Time integrators of the net, compiled with numba.
 
 Each integrator computes the velocity increment dv [m/s] of one step from the state; the step
-is then v <- v + dv, x <- x + dt v (and, with bending, w <- w + dt tau / J, q <- exp(dt w / 2) q).
+is then v <- v + dv, x <- x + dt v (and, with bending, w <- w + dt tau / J, q <- exp(dt w / 2) q;
+the soft bending springs are evaluated every n steps, see :func:`advance`).
 The fast engine does this in compiled loops; the bullet engine hands m dv / dt and tau to
 PyBullet as external force and torque and lets PyBullet take the step (its integrator is the
 same semi-implicit update), so both engines run the same method.
@@ -27,7 +28,7 @@ import numpy as np
 
 from .contact import contact_stage, ensure_pairs
 from .forces.axial import add_pair, axial_forces, axial_linearization
-from .forces.bending import bending_forces, integrate_rotation
+from .forces.bending import advance_rotation, bending_forces
 from .model import NetModel
 
 SYMPLECTIC_EULER = 0
@@ -86,11 +87,11 @@ class Workspace:
         self.cg_iterations = np.zeros(1, dtype=np.int64)
         """CG iterations summed over all implicit steps [-]."""
         self.bend = np.zeros((n, 3))
-        """Bending forces of the last evaluation [N], shape (N, 3)."""
+        """Bending forces of the last evaluation [N], shape (N, 3); held until the next."""
         self.step_count = np.zeros(1, dtype=np.int64)
         """Steps taken, for the bending schedule [-]."""
         self.gain = np.zeros(n)
-        """Angular velocity change per unit torque of a bending impulse [rad/(N m s)],
+        """Angular velocity change per step per unit held bending torque [rad/(N m s)],
         shape (N,) (:func:`angular_gains`)."""
 
     def arrays(self) -> tuple:
@@ -101,25 +102,25 @@ class Workspace:
 
 
 @nb.njit(cache=True, error_model="numpy")
-def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending_weight):
-    """Gravity, loads and ``external`` [N] (N, 3) into work's force; with ``bending_weight``
-    w > 0 also w times the bending forces, and w times the bending torques into work's torque
-    (zeroed otherwise), and the threads' shear [N] into work's shear."""
+def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending_weight,
+                    hold):
+    """Gravity, loads, ``external`` [N] (N, 3) and the bending forces into work's force.
+    With ``bending_weight`` w > 0 the bending springs are evaluated afresh first: their forces
+    [N] into work's bend, their torques [N m] into work's torque, the threads' shear [N] into
+    work's shear. The bending forces then enter as an impulse (w times, on this step only) or,
+    with ``hold``, held (once on this and every step until the next evaluation)."""
     (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
      bilateral, inv_mass, radius, rot_c, rot_k) = model
     force, torque, shear, bend = work[0], work[1], work[3], work[11]
-    for i in range(pos.shape[0]):
-        for a in range(3):
-            force[i, a] = mass[i] * gravity[a] + load[i, a] + external[i, a]
-    if bending_weight > 0.0:  # (torque is only read on steps with a bending impulse)
+    if bending_weight > 0.0:
         torque[:] = 0.0
         bend[:] = 0.0
         bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b, bend,
                        torque, shear)
-        for i in range(pos.shape[0]):
-            for a in range(3):
-                force[i, a] += bending_weight * bend[i, a]
-                torque[i, a] *= bending_weight
+    scale = 1.0 if hold else bending_weight  # (bend stays zero without bending)
+    for i in range(pos.shape[0]):
+        for a in range(3):
+            force[i, a] = mass[i] * gravity[a] + load[i, a] + external[i, a] + scale * bend[i, a]
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -302,11 +303,11 @@ def symplectic_increment(pos, vel, model, work, dt):
 
 @nb.njit(cache=True, error_model="numpy")
 def angular_gains(method, weight, dt, model, gain):
-    """Each node's angular velocity change per unit torque [rad/(N m s)] of a bending impulse
-    of ``weight`` steps of ``dt`` [s], into ``gain`` (N,): dt / J for symplectic Euler; for
-    implicit Euler the rotations' own damping and stiffness are implicit on the diagonal,
-    scaled by their Gershgorin bounds, dt / (J + h C_g + h^2 K_g) with h = weight dt (stable
-    at any step). Zero for clamped nodes."""
+    """Each node's angular velocity change per step of ``dt`` [s] per unit bending torque
+    [rad/(N m s)] for springs evaluated every ``weight`` steps, into ``gain`` (N,): dt / J for
+    symplectic Euler; for implicit Euler the rotations' own damping and stiffness are
+    implicit on the diagonal, scaled by their Gershgorin bounds, dt / (J + h C_g + h^2 K_g)
+    with h = weight dt (stable at any step). Zero for clamped nodes."""
     inertia, fixed, rot_c, rot_k = model[9], model[11], model[16], model[17]
     h = dt * weight if method == IMPLICIT_EULER else 0.0
     for i in range(gain.shape[0]):
@@ -315,8 +316,8 @@ def angular_gains(method, weight, dt, model, gain):
 
 @nb.njit(cache=True, error_model="numpy")
 def bending_weight(bending, every, work):
-    """Weight of the bending forces this step: ``every`` on every ``every``-th step (an impulse
-    standing for the soft bending springs over that interval), 0 otherwise or without bending."""
+    """Steps the bending springs evaluated this step stand for: ``every`` on every
+    ``every``-th step, 0 otherwise (they are not evaluated) or without bending."""
     if not bending:
         return 0.0
     return float(every) if work[12][0] % every == 0 else 0.0
@@ -326,7 +327,8 @@ def bending_weight(bending, every, work):
 def increment(method, weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol):
     """All forces at the state (bending with ``weight``), then the method's velocity increment
     into work's dv; counts the step."""
-    external_forces(pos, vel, quat, omega, model, work, gravity, external, weight)
+    external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
+                    method == IMPLICIT_EULER)
     if method == SYMPLECTIC_EULER:
         symplectic_increment(pos, vel, model, work, dt)
     else:
@@ -342,22 +344,25 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
     (:func:`bulletnet.contact.contact_stage`, if ``contact`` has any on). Returns the steps
     taken: fewer only if the self-contact list must grow first (the caller grows it and
     continues). The caller checks the result for non-finite values; a diverging chunk is
-    at most one record interval. Between bending impulses the angular velocities are
-    constant, so the orientations are advanced once over the whole interval (exactly the
-    same rotation)."""
+    at most one record interval. The bending springs, evaluated every ``every`` steps, act
+    as one impulse standing for the interval (symplectic Euler: the multirate step stays
+    symplectic) or are held over it (implicit Euler: a smooth right-hand side keeps the CG
+    warm start); either way the orientations are advanced once per interval
+    (:func:`~bulletnet.forces.bending.advance_rotation`)."""
     n = pos.shape[0]
     mass, fixed, radius = model[0], model[11], model[15]
     torque, dv, gain = work[1], work[7], work[13]
     flags = contact[20]
     touching = flags[0] or flags[1]
-    pending = 0  # steps of rotation not yet applied to quat
+    pending = 0  # steps of rotation not yet applied to (quat, omega)
+    hold = 1.0 if method == IMPLICIT_EULER else 0.0
     taken = 0
     for step in range(steps):
         if touching and not ensure_pairs(pos, radius, contact):
             break
         weight = bending_weight(bending, every, work)
         if weight > 0.0 and pending > 0:
-            integrate_rotation(quat, omega, pending * dt)
+            advance_rotation(quat, omega, gain, torque, hold, pending, dt)
             pending = 0
         increment(method, weight, pos, vel, quat, omega, model, work, gravity, external, dt,
                   tol)
@@ -370,11 +375,12 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
         if bending:
             if weight > 0.0:
                 angular_gains(method, weight, dt, model, gain)
-                for i in range(n):
-                    for a in range(3):
-                        omega[i, a] += gain[i] * torque[i, a]
+                if hold == 0.0:  # an impulse standing for the interval
+                    for i in range(n):
+                        for a in range(3):
+                            omega[i, a] += weight * gain[i] * torque[i, a]
             pending += 1
         taken += 1
     if pending > 0:
-        integrate_rotation(quat, omega, pending * dt)
+        advance_rotation(quat, omega, gain, torque, hold, pending, dt)
     return taken

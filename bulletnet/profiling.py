@@ -91,7 +91,7 @@ def _force_loop(steps, bending, every, pos, vel, quat, omega, model, work, gravi
     pairs, rest, k_a, c_a, bilateral = model[1], model[2], model[3], model[4], model[13]
     for _ in range(steps):
         weight = bending_weight(bending, every, work)
-        external_forces(pos, vel, quat, omega, model, work, gravity, external, weight)
+        external_forces(pos, vel, quat, omega, model, work, gravity, external, weight, False)
         axial_forces(pos, vel, pairs, rest, k_a, c_a, bilateral, work[0], work[2])
         work[12][0] += 1
 

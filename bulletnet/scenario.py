@@ -193,8 +193,10 @@ class Simulation:
     """Time step [s]; 0 picks the engine's and integrator's default."""
     record_rate: float = _f(100.0, "Hz", ">0")
     """Frames recorded per simulated second [Hz]."""
-    cg_tolerance: float = _f(1e-8, "-", ">0")
-    """Relative residual at which implicit_euler's conjugate-gradient solve stops [-]."""
+    cg_tolerance: float = _f(1e-4, "-", ">0")
+    """Relative residual at which implicit_euler's conjugate-gradient solve stops [-]. The
+    step's own error dominates at 1e-4: on the 3 s deployment with bending at 3e-5 s, 1e-4,
+    1e-6 and 1e-8 give 0.649, 0.656 and 0.662 mm (3.8, 11.6 and 19.1 iterations a step)."""
     rtol: float = _f(1e-8, "-", ">0")
     """Relative tolerance of the reference engine [-]."""
     atol: float = _f(1e-10, "-", ">0")

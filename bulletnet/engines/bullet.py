@@ -123,6 +123,7 @@ class BulletEngine(Engine):
             self._step_set = dt
         c, w = self.client, self.work
         method = integrators.INTEGRATOR_IDS[self.integrator]
+        held = method == integrators.IMPLICIT_EULER
         apply, apply_torque = c.applyExternalForce, c.applyExternalTorque
         frame = self.pb.WORLD_FRAME
         mass_over_dt = self.model.mass[:, None] / dt
@@ -137,9 +138,12 @@ class BulletEngine(Engine):
             for body, f, x in zip(self.bodies, force.tolist(), state.position.tolist(),
                                   strict=True):
                 apply(body, -1, f, x, frame)
-            if weight > 0.0:  # PyBullet's update is dt tau / J: the fast engine's gain, as torque
+            if weight > 0.0:
                 integrators.angular_gains(method, weight, dt, self.arrays, w.gain)
-                torque = w.torque * (w.gain * self.model.inertia / dt)[:, None]
+            if self.bending and (held or weight > 0.0):  # an impulse, or held (see advance)
+                # PyBullet's update is dt tau / J: the fast engine's gain, as torque
+                scale = w.gain * (self.model.inertia / dt * (1.0 if held else weight))
+                torque = w.torque * scale[:, None]
                 for body, tau in zip(self.bodies, torque.tolist(), strict=True):
                     apply_torque(body, -1, tau, frame)
             c.stepSimulation()

@@ -101,24 +101,49 @@ def bending_energy(pos, quat, pairs, rest_axis, k_t, k_b) -> float:
     return float(energy)
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def turn(quat, i, wx, wy, wz):
+    """q_i <- exp(w / 2) q_i: node i turned by the rotation vector w [rad] (exactly; the
+    result renormalized)."""
+    a2 = wx * wx + wy * wy + wz * wz
+    if a2 < 1e-6:  # angle < 1e-3 rad: series of sin(a/2)/a and cos(a/2), exact to round-off
+        s = 0.5 - a2 * (1.0 / 48.0 - a2 / 3840.0)
+        dw = 1.0 - a2 * (0.125 - a2 / 384.0)
+    else:
+        angle = np.sqrt(a2)
+        s = np.sin(0.5 * angle) / angle
+        dw = np.cos(0.5 * angle)
+    dx, dy, dz = wx * s, wy * s, wz * s
+    qx, qy, qz, qw = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
+    nx = dw * qx + dx * qw + dy * qz - dz * qy
+    ny = dw * qy + dy * qw + dz * qx - dx * qz
+    nz = dw * qz + dz * qw + dx * qy - dy * qx
+    nw = dw * qw - dx * qx - dy * qy - dz * qz
+    norm = np.sqrt(nx * nx + ny * ny + nz * nz + nw * nw)
+    quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = nx / norm, ny / norm, nz / norm, nw / norm
+
+
 @nb.njit(cache=True, error_model="numpy")
 def integrate_rotation(quat, omega, dt):
     """q <- exp(dt w / 2) q for every node: the exact rotation by w dt [rad], renormalized."""
     for i in range(quat.shape[0]):
-        wx, wy, wz = omega[i, 0] * dt, omega[i, 1] * dt, omega[i, 2] * dt
-        a2 = wx * wx + wy * wy + wz * wz
-        if a2 < 1e-6:  # angle < 1e-3 rad: series of sin(a/2)/a and cos(a/2), exact to round-off
-            s = 0.5 - a2 * (1.0 / 48.0 - a2 / 3840.0)
-            dw = 1.0 - a2 * (0.125 - a2 / 384.0)
-        else:
-            angle = np.sqrt(a2)
-            s = np.sin(0.5 * angle) / angle
-            dw = np.cos(0.5 * angle)
-        dx, dy, dz = wx * s, wy * s, wz * s
-        qx, qy, qz, qw = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
-        nx = dw * qx + dx * qw + dy * qz - dz * qy
-        ny = dw * qy + dy * qw + dz * qx - dx * qz
-        nz = dw * qz + dz * qw + dx * qy - dy * qx
-        nw = dw * qw - dx * qx - dy * qy - dz * qz
-        norm = np.sqrt(nx * nx + ny * ny + nz * nz + nw * nw)
-        quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3] = nx / norm, ny / norm, nz / norm, nw / norm
+        turn(quat, i, omega[i, 0] * dt, omega[i, 1] * dt, omega[i, 2] * dt)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def advance_rotation(quat, omega, gain, torque, held, steps, dt):
+    """``steps`` steps of dt [s] of every node's rotation: with ``held`` 1, under a held torque
+    [N m] (N, 3), each step w <- w + gain tau (``gain`` [rad/(N m s)], (N,)) then
+    q <- exp(dt w / 2) q; taken at once, since w grows linearly: q turns by
+    steps dt w_0 + dt steps (steps + 1) / 2 gain tau (exact up to the commutator of the step
+    rotations, O((dt |w|)^2 steps^2)). With ``held`` 0 the torque is ignored and q turns by
+    steps dt w exactly."""
+    ramp = 0.5 * steps * (steps + 1) * dt * held
+    span = steps * dt
+    for i in range(quat.shape[0]):
+        g = gain[i] * ramp
+        turn(quat, i, span * omega[i, 0] + g * torque[i, 0], span * omega[i, 1] + g * torque[i, 1],
+             span * omega[i, 2] + g * torque[i, 2])
+        g = gain[i] * steps * held
+        for a in range(3):
+            omega[i, a] += g * torque[i, a]
