@@ -17,7 +17,11 @@ Capture (Sec. 5), from recordings with debris and contact:
   covers 0.17; a net wrapped all round, 1. Rays: a Fibonacci sphere of ``directions``;
 - leave time: the end of the last frame interval with debris contact, when no contact follows
   for at least ``LEAVE_QUIET_S`` to the end of the run;
-- the debris' spin before and after: angular velocity [deg/s] at the first and last frame.
+- the debris' spin before and after: angular velocity [deg/s] at the first and last frame;
+- the mechanical energy: the nodes' kinetic energy, the threads' elastic energy and the
+  debris' kinetic energy. What it leaves out (the nodes' rotation, the bending and contact
+  springs) is never negative and zero at the start of a scene, and every force of the model
+  is passive: so it never rises above its initial value in a sound run.
 """
 
 from __future__ import annotations
@@ -219,6 +223,26 @@ def _covered(points, tri, rays):
                 hits += 1
                 break
     return hits / rays.shape[0]
+
+
+def energy(rec: Recording) -> np.ndarray:
+    """Mechanical energy [J], shape (T,): the nodes' translational kinetic energy, the
+    threads' elastic energy (Eq. 3 springs) and, with debris, its kinetic energy (translation
+    of its centre of mass and rotation about it). Leaves out the nodes' rotation and the
+    bending and contact springs (see the module doc)."""
+    from .forces.axial import axial_energy
+
+    total = 0.5 * np.einsum("n,tna,tna->t", rec.mass, rec.velocity, rec.velocity)
+    total += axial_energy(rec.position, rec.pairs, rec.rest_length, rec.stiffness)
+    if rec.debris is not None:
+        d = rec.debris
+        rot = rotation_matrix(d["orientation"])
+        inertia = rot @ np.asarray(d["attrs"]["inertia"], dtype=float) @ np.swapaxes(rot, 1, 2)
+        w = d["angular_velocity"]
+        total += 0.5 * float(d["attrs"]["mass"]) * np.einsum("ta,ta->t", d["velocity"],
+                                                              d["velocity"])
+        total += 0.5 * np.einsum("ta,tab,tb->t", w, inertia, w)
+    return total
 
 
 def spin(rec: Recording) -> dict:

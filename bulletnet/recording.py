@@ -39,6 +39,8 @@ class Recording:
     """Thread end nodes [-], shape (P, 2)."""
     rest_length: np.ndarray
     """Thread rest lengths [m], shape (P,)."""
+    stiffness: np.ndarray
+    """Thread axial stiffnesses k_a [N/m], shape (P,)."""
     debris: dict | None = None
     """Scenes with debris: ``position`` (T, 3) of the body-frame origin [m], ``orientation``
     (T, 4) quaternions x, y, z, w, ``velocity`` (T, 3) [m/s], ``angular_velocity`` (T, 3)
@@ -102,6 +104,7 @@ def open_recording(path: str | os.PathLike) -> Recording:
                 kind=f["nodes/kind"][()],
                 pairs=f["threads/pairs"][()],
                 rest_length=f["threads/rest_length"][()],
+                stiffness=f["threads/stiffness"][()],
                 debris=_group(f, "debris", frames),
                 contacts=_group(f, "contacts", frames),
             )
