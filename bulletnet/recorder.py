@@ -47,10 +47,10 @@ completed / interrupted / diverged), ``message``, ``wall_time_s`` [s], ``bulletn
 
 The file is written as ``NAME.part`` in SWMR mode. Frames are kept in memory and written,
 one block per dataset, after the first frame and then every ``flush_interval`` seconds of
-wall time (a resize and a write per dataset and frame cost ~1 ms a frame), and renamed to ``NAME`` when the run ends
-however it ends. After a hard kill the ``.part`` file still opens (``h5py.File(path, "r",
-swmr=True)``, or :func:`bulletnet.open_recording`) and holds every frame up to the last flush,
-with status ``running``.
+wall time (a resize and a write per dataset and frame cost ~1 ms a frame), and the file is
+renamed to ``NAME`` when the run ends however it ends. After a hard kill the ``.part`` file
+still opens (``h5py.File(path, "r", swmr=True)``, or :func:`bulletnet.open_recording`) and
+holds every frame up to the last flush, with status ``running``.
 """
 
 from __future__ import annotations
