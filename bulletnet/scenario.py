@@ -138,10 +138,11 @@ class Contact:
     damping_ratio: float = _f(0.01, "-", "[0,1)")
     """Contact damping ratio xi in c_c = 2 xi sqrt(k_c m_c) [-] (Sec. 3.3); below 1
     (underdamped), which the exact contact integrator assumes."""
-    model: str = _f("exact", "-", "choice", ("exact", "implicit"))
-    """Normal contact law over a step: ``exact`` follows Eq. 6 through every impact in
-    closed form (the pair's own rebound at any step); ``implicit`` takes a backward-Euler
-    step of it, as constraint solvers do (Vortex, PyBullet): inelastic at practical steps."""
+    model: str = _f("implicit", "-", "choice", ("exact", "implicit"))
+    """Normal contact law over a step: ``implicit`` takes a backward-Euler step of Eq. 6, as
+    constraint solvers do (Vortex, PyBullet): inelastic at practical steps, and passive;
+    ``exact`` follows Eq. 6 through every impact in closed form (the pair's own rebound at
+    any step), but beside implicit-Euler threads it can gain energy (see README)."""
     self_contact: bool = _f(True, "-")
     """Whether the net's node spheres also collide with each other (with contact on)."""
     skin: float = _f(0.05, "m", ">0")

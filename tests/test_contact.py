@@ -63,9 +63,11 @@ def plane_debris() -> Debris:
 
 
 def contact_world(**overrides):
-    """A 2 x 2 net scene with contact (Tables 5-6 pairs of the capture materials), its model
-    and contact arrays with a static plane debris at the origin."""
-    scene = bn.load_scenario("capture", {"net.nodes_per_side": 2, **overrides})
+    """A 2 x 2 net scene with contact (Tables 5-6 pairs of the capture materials; the exact
+    law unless overridden), its model and contact arrays with a static plane debris at the
+    origin."""
+    scene = bn.load_scenario("capture", {"net.nodes_per_side": 2, "contact.model": "exact",
+                                         **overrides})
     model = bn.build_model(scene)
     setup = contact.setup(scene, model, plane_debris())
     a = setup.arrays
