@@ -195,9 +195,10 @@ class Simulation:
     record_rate: float = _f(100.0, "Hz", ">0")
     """Frames recorded per simulated second [Hz]."""
     cg_tolerance: float = _f(1e-4, "-", ">0")
-    """Relative residual at which implicit_euler's conjugate-gradient solve stops [-]. The
-    step's own error dominates at 1e-4: on the 3 s deployment with bending at 3e-5 s, 1e-4,
-    1e-6 and 1e-8 give 0.649, 0.656 and 0.662 mm (3.8, 11.6 and 19.1 iterations a step)."""
+    """Relative residual at which implicit_euler's conjugate-gradient solve stops [-]. On
+    the 3 s deployment with bending at 3e-5 s, 1e-4, 1e-6 and 1e-8 give 0.649, 0.656 and
+    0.662 mm (3.8, 11.6 and 19.1 iterations a step); without bending 1e-4 costs 15-70 % more
+    error than 1e-8 (docs/speed.md)."""
     rtol: float = _f(1e-8, "-", ">0")
     """Relative tolerance of the reference engine [-]."""
     atol: float = _f(1e-10, "-", ">0")
