@@ -433,6 +433,8 @@ def cmd_metrics(args) -> int:
         print("debris angular velocity [deg/s]: "
               f"{' '.join(f'{w:.4f}' for w in spin['initial_deg_s'])} -> "
               f"{' '.join(f'{w:.4f}' for w in spin['final_deg_s'])}")
+        print(f"largest rise of the mechanical energy above its start: "
+              f"{capture['max_energy_gain_J']:.3g} J (a passive model has none)")
     print("   time [s]  mouth area [m^2]  mouth diagonal [m]  net height [m]"
           + ("  contacts [-]  wrap [-]" if capture else ""))
     next_t = 0.0

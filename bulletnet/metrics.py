@@ -255,10 +255,13 @@ def spin(rec: Recording) -> dict:
 
 def capture_summary(rec: Recording) -> dict:
     """Capture measures (JSON-ready, units in the keys): first-contact and leave times,
-    peak nodes in contact and wrap, the debris' spin change, and the time series."""
+    peak nodes in contact and wrap, the debris' spin change, the largest rise of the
+    mechanical energy above its start (:func:`energy`; a sound run has none), and the time
+    series."""
     count = nodes_in_contact(rec)
     wrapped = wrap(rec)
     k = int(np.argmax(wrapped))
+    total = energy(rec)
     return {
         "first_contact_s": first_contact_time(rec),
         "first_self_contact_s": (float(rec.attrs["first_self_contact_s"])
@@ -267,6 +270,7 @@ def capture_summary(rec: Recording) -> dict:
         "max_nodes_in_contact": int(count.max()),
         "max_wrap": float(wrapped[k]), "max_wrap_time_s": float(rec.time[k]),
         "spin": spin(rec),
+        "max_energy_gain_J": float(np.max(total - total[0])),
         "nodes_in_contact": count.astype(int).tolist(),
         "normal_force_N": rec.contacts["normal_force"].tolist(),
         "wrap": wrapped.tolist(),
