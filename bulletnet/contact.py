@@ -142,6 +142,16 @@ def _norm(a):
     return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _slip(rel, n):
+    """Remove from the relative velocity ``rel`` [m/s] (3,) its component along the unit
+    normal ``n``, in place; return the remaining slip speed [m/s]."""
+    rel_n = rel[0] * n[0] + rel[1] * n[1] + rel[2] * n[2]
+    for a in range(3):
+        rel[a] -= rel_n * n[a]
+    return _norm(rel)
+
+
 @nb.njit(cache=True, error_model="numpy")
 def normal_motion(params, s, u, a, k, c, m, dt):
     """The scene's normal law over one step: exact (:func:`normal_step`) or backward Euler
@@ -231,13 +241,9 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
             pos[i, a] += shift * n[a]
             vel[i, a] += du * n[a]
         jn = m * du
-        rel_n = 0.0
         for a in range(3):
             tmp[a] = vel[i, a] - vs[a]
-            rel_n += tmp[a] * n[a]
-        for a in range(3):
-            tmp[a] -= rel_n * n[a]  # slip velocity
-        slip_speed = _norm(tmp)
+        slip_speed = _slip(tmp, n)
         jt = friction_impulse(slip_speed, max(jn, 0.0), tc, m, slip, mu_s[0, c], mu_k[0, c])
         for a in range(3):
             tangential = -jt * tmp[a] / slip_speed if jt > 0.0 else 0.0
@@ -344,7 +350,6 @@ def self_stage(pos, vel, dv, mass, radius, contact, dt, t):
             continue
         u_free = u0 + dvn
         shift, du = s1 - (s0 + dt * u_free), u1 - u_free
-        rel_n = 0.0
         for a in range(3):
             pos[j, a] += mc / mass[j] * shift * n[a]
             pos[i, a] -= mc / mass[i] * shift * n[a]
@@ -352,10 +357,7 @@ def self_stage(pos, vel, dv, mass, radius, contact, dt, t):
             vel[i, a] -= mc / mass[i] * du * n[a]
         for a in range(3):
             tmp[a] = vel[j, a] - vel[i, a]
-            rel_n += tmp[a] * n[a]
-        for a in range(3):
-            tmp[a] -= rel_n * n[a]
-        slip_speed = _norm(tmp)
+        slip_speed = _slip(tmp, n)
         jn = mc * du
         jt = friction_impulse(slip_speed, max(jn, 0.0), tc, mc, slip, mu_s[ci, cj],
                               mu_k[ci, cj])
