@@ -62,8 +62,8 @@ class Engine(ABC):
         self.bending_every = scenario.bending.every or (
             bending_interval(model, self.dt, BENDING_MARGINS[self.integrator])
             if self.dt > 0 else 1)
-        """Steps between evaluations of the bending springs (forces held, torques as
-        impulses) [-]."""
+        """Steps between evaluations of the bending springs [-]: impulses with symplectic
+        Euler, held forces and torques with implicit Euler (:func:`integrators.advance`)."""
         self.gravity = np.asarray(scenario.scene.gravity, dtype=float)
         """Gravitational acceleration [m/s^2], shape (3,)."""
         self.external = np.zeros((model.node_count, 3))
