@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -44,10 +45,67 @@ ALUMINIUM_CLASSES = (0, 1)
 """Classes made of aluminium (the debris and the corner masses); the rest is net material."""
 
 
+class ContactArrays(NamedTuple):
+    """The arrays of the compiled contact stage, for N nodes and a Verlet list of C pairs
+    (:func:`setup`); empty where a kind of contact is off (same types: one compiled loop)."""
+
+    node_class: np.ndarray
+    """Body class of each node, an index in :data:`~bulletnet.hertz.BODY_CLASSES` [-],
+    shape (N,), int64."""
+    stiffness: np.ndarray
+    """k_c between body classes [N/m], shape (5, 5)."""
+    damping: np.ndarray
+    """c_c between body classes [N s/m], shape (5, 5)."""
+    mu_static: np.ndarray
+    """Static friction coefficients between body classes [-], shape (5, 5)."""
+    mu_kinetic: np.ndarray
+    """Kinetic friction coefficients between body classes [-], shape (5, 5)."""
+    params: np.ndarray
+    """Friction slip [s/kg], Verlet skin [m], normal law (1: implicit, 0: exact), shape (3,)."""
+    parts: np.ndarray
+    """Debris frustums: y_start, y_end, radius_start, radius_end [m], shape (K, 4)."""
+    com_body: np.ndarray
+    """Debris centre of mass in its body frame [m], shape (3,)."""
+    bound: np.ndarray
+    """Radius of the debris' bounding sphere about its centre of mass [m], shape (1,)."""
+    com: np.ndarray
+    """Debris centre of mass [m], shape (3,)."""
+    quat: np.ndarray
+    """Debris orientation, quaternion x, y, z, w [-], shape (1, 4)."""
+    velocity: np.ndarray
+    """Debris velocity [m/s], shape (3,)."""
+    omega: np.ndarray
+    """Debris angular velocity, world frame [rad/s], shape (1, 3)."""
+    impulse: np.ndarray
+    """Impulse of the net on the debris since the chunk began: force [N s] (3), then moment
+    about the centre of mass [N m s] (3), shape (6,)."""
+    node_impulse: np.ndarray
+    """Debris contact normal impulse on each node since last read [N s], shape (N,)."""
+    self_impulse: np.ndarray
+    """Node-node contact normal impulse on each node since last read [N s], shape (N,)."""
+    pairs: np.ndarray
+    """The Verlet list of node pairs [-], shape (C, 2), int64."""
+    pair_meta: np.ndarray
+    """Pairs in the list, overflow flag, builds so far [-], shape (3,), int64."""
+    build_position: np.ndarray
+    """Node positions at the last build of the list [m], shape (N, 3)."""
+    first_contact: np.ndarray
+    """Times of the first debris and the first node-node contact [s] (-1: none yet),
+    shape (2,)."""
+    flags: np.ndarray
+    """Whether debris contact and self-contact are on [-], shape (2,), bool."""
+    debris_gap: np.ndarray
+    """Gap to the debris each node's last step predicted [m] (+inf: none), shape (N,)."""
+    pair_gap: np.ndarray
+    """Gap each listed pair's last step predicted [m] (+inf: none), shape (C,)."""
+    projections: np.ndarray
+    """Overlap projections: count [-], total distance [m], shape (2,)."""
+
+
 @dataclass
 class ContactSetup:
-    arrays: tuple
-    """The arrays the compiled stage unpacks (see :func:`setup`)."""
+    arrays: ContactArrays
+    """The arrays the compiled stage reads (see :func:`setup`)."""
     has_debris: bool
     """Whether nodes collide with the debris."""
     self_contact: bool
@@ -100,33 +158,29 @@ def setup(s: Scenario, model: NetModel, debris=None, enabled: bool = True) -> Co
     else:
         parts, com_body, bound = np.zeros((0, 4)), np.zeros(3), 0.0
     capacity = 16 * n if self_contact else 0
-    arrays = (
-        node_class, k, c, mu_s, mu_k,
-        np.array([s.friction.slip, s.contact.skin,      # 5: slip [s/kg], skin [m],
-                  float(s.contact.model == "implicit")]),  # normal law: 1 implicit
-        parts, com_body, np.array([bound]),             # 6-8: geometry [m]
-        np.zeros(3), np.array([[0.0, 0.0, 0.0, 1.0]]),  # 9-10: debris COM [m], quaternion
-        np.zeros(3), np.zeros((1, 3)),                  # 11-12: velocity [m/s], [rad/s]
-        np.zeros(6),                                    # 13: impulse on debris [N s, N m s]
-        np.zeros(n), np.zeros(n),                       # 14-15: node impulses [N s]
-        np.zeros((capacity, 2), dtype=np.int64),        # 16: Verlet pairs
-        np.zeros(3, dtype=np.int64),                    # 17: pair count, overflow, builds
-        np.zeros((n, 3)),                               # 18: positions at the last build [m]
-        np.full(2, -1.0),                               # 19: first debris / self contact [s]
-        np.array([has_debris, self_contact]),           # 20: what is on
-        np.full(n, np.inf), np.full(capacity, np.inf),  # 21-22: predicted gaps [m]
-        np.zeros(2),                                    # 23: projections: count, sum [m]
+    arrays = ContactArrays(
+        node_class=node_class, stiffness=k, damping=c, mu_static=mu_s, mu_kinetic=mu_k,
+        params=np.array([s.friction.slip, s.contact.skin, float(s.contact.model == "implicit")]),
+        parts=parts, com_body=com_body, bound=np.array([bound]),
+        com=np.zeros(3), quat=np.array([[0.0, 0.0, 0.0, 1.0]]), velocity=np.zeros(3),
+        omega=np.zeros((1, 3)), impulse=np.zeros(6),
+        node_impulse=np.zeros(n), self_impulse=np.zeros(n),
+        pairs=np.zeros((capacity, 2), dtype=np.int64), pair_meta=np.zeros(3, dtype=np.int64),
+        build_position=np.zeros((n, 3)), first_contact=np.full(2, -1.0),
+        flags=np.array([has_debris, self_contact]),
+        debris_gap=np.full(n, np.inf), pair_gap=np.full(capacity, np.inf),
+        projections=np.zeros(2),
     )
     return ContactSetup(arrays=arrays, has_debris=has_debris, self_contact=self_contact)
 
 
 def grow_pair_list(setup_: ContactSetup) -> ContactSetup:
     """The same setup with twice the Verlet list capacity (after an overflow)."""
-    a = list(setup_.arrays)
-    a[16] = np.zeros((2 * max(a[16].shape[0], 1), 2), dtype=np.int64)
-    a[22] = np.full(a[16].shape[0], np.inf)
-    a[17][:] = 0
-    return ContactSetup(arrays=tuple(a), has_debris=setup_.has_debris,
+    a = setup_.arrays
+    pairs = np.zeros((2 * max(a.pairs.shape[0], 1), 2), dtype=np.int64)
+    a.pair_meta[:] = 0
+    return ContactSetup(arrays=a._replace(pairs=pairs, pair_gap=np.full(pairs.shape[0], np.inf)),
+                        has_debris=setup_.has_debris,
                         self_contact=setup_.self_contact)
 
 
@@ -182,10 +236,13 @@ def overlap_error(s0, predicted, stats):
 def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
     """Contact of every node with the debris over the step just taken: (pos, vel) hold the
     free step's end, dv its velocity increment [m/s]; the debris moves rigidly at its
-    velocity over the step. Impulses on the debris are added to contact[13]."""
-    (cls, kc, cc, mu_s, mu_k, params, parts, com_body, bound, com, quat, vd, wd, imp,
-     node_imp) = contact[:15]
-    first, predicted, stats = contact[19], contact[21], contact[23]
+    velocity over the step. Impulses on the debris are added to contact.impulse."""
+    cls, kc, cc, mu_s, mu_k = (contact.node_class, contact.stiffness, contact.damping,
+                               contact.mu_static, contact.mu_kinetic)
+    params, parts, com_body, bound = contact.params, contact.parts, contact.com_body, contact.bound
+    com, quat, vd, wd = contact.com, contact.quat, contact.velocity, contact.omega
+    imp, node_imp = contact.impulse, contact.node_impulse
+    first, predicted, stats = contact.first_contact, contact.debris_gap, contact.projections
     slip = params[0]
     rot = np.empty((3, 3))
     quat_matrix(quat[0], rot)
@@ -265,8 +322,8 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
 def build_pairs(pos, radius, contact):
     """Rebuild the Verlet list of node pairs closer than their radii plus the skin (sweep
     along x). Returns False if the list's capacity is too small."""
-    skin = contact[5][1]
-    pairs, meta, ref = contact[16], contact[17], contact[18]
+    skin = contact.params[1]
+    pairs, meta, ref = contact.pairs, contact.pair_meta, contact.build_position
     order = np.argsort(pos[:, 0])
     reach = 2.0 * radius.max() + skin
     count = 0
@@ -287,7 +344,7 @@ def build_pairs(pos, radius, contact):
     meta[0] = count
     meta[2] += 1
     ref[:] = pos
-    contact[22][:] = np.inf
+    contact.pair_gap[:] = np.inf
     return True
 
 
@@ -296,9 +353,9 @@ def ensure_pairs(pos, radius, contact):
     """Before a step: rebuild the Verlet list if no list exists or a node has moved more
     than 0.4 skin since the last build (two nodes then close at most 0.8 skin, leaving 0.2
     skin for the step itself). Returns False if the list's capacity is too small."""
-    if not contact[20][1]:
+    if not contact.flags[1]:
         return True
-    skin, meta, ref = contact[5][1], contact[17], contact[18]
+    skin, meta, ref = contact.params[1], contact.pair_meta, contact.build_position
     moved = 0.0
     for i in range(pos.shape[0]):
         d2 = 0.0
@@ -314,9 +371,12 @@ def ensure_pairs(pos, radius, contact):
 def self_stage(pos, vel, dv, mass, radius, contact, dt, t):
     """Contact between node spheres over the step just taken (see :func:`debris_stage`),
     for the pairs of the Verlet list (:func:`ensure_pairs`)."""
-    cls, kc, cc, mu_s, mu_k, params = contact[:6]
-    self_imp, pairs, meta, first = contact[15], contact[16], contact[17], contact[19]
-    predicted, stats = contact[22], contact[23]
+    cls, kc, cc, mu_s, mu_k = (contact.node_class, contact.stiffness, contact.damping,
+                               contact.mu_static, contact.mu_kinetic)
+    params = contact.params
+    self_imp, pairs, meta = contact.self_impulse, contact.pairs, contact.pair_meta
+    first = contact.first_contact
+    predicted, stats = contact.pair_gap, contact.projections
     skin, slip = params[1], params[0]
     n, tmp = np.empty(3), np.empty(3)
     for q in range(meta[0]):
@@ -378,12 +438,12 @@ def self_stage(pos, vel, dv, mass, radius, contact, dt, t):
 def contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
     """Debris contact, self-contact, then the debris' rigid motion over the step (constant
     velocity)."""
-    flags = contact[20]
+    flags = contact.flags
     if flags[1]:
         self_stage(pos, vel, dv, mass, radius, contact, dt, t)
     if flags[0]:
         debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t)
-        com, quat, vd, wd = contact[9], contact[10], contact[11], contact[12]
+        com, quat, vd, wd = contact.com, contact.quat, contact.velocity, contact.omega
         for a in range(3):
             com[a] += dt * vd[a]
         integrate_rotation(quat, wd, dt)

@@ -23,6 +23,8 @@ Clamped nodes (``model.fixed``) never move or turn.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 
@@ -50,55 +52,105 @@ def rotational_bounds(model: NetModel) -> tuple[np.ndarray, np.ndarray]:
     return 2.0 * c_sum, 2.0 * k_sum
 
 
-def model_arrays(model: NetModel) -> tuple:
-    """The model's arrays in the order the compiled kernels unpack them."""
+class ModelArrays(NamedTuple):
+    """The net model as the compiled kernels read it (:class:`~bulletnet.model.NetModel`'s
+    arrays, plus derived ones), for N nodes and P threads."""
+
+    mass: np.ndarray
+    """Node masses [kg], shape (N,)."""
+    pairs: np.ndarray
+    """Thread end nodes (i, j) [-], shape (P, 2), int64."""
+    rest: np.ndarray
+    """Thread rest lengths [m], shape (P,)."""
+    k_a: np.ndarray
+    """Axial stiffness [N/m], shape (P,)."""
+    c_a: np.ndarray
+    """Axial damping [N s/m], shape (P,)."""
+    k_t: np.ndarray
+    """Transverse stiffness [N/m], shape (P,)."""
+    c_t: np.ndarray
+    """Transverse damping [N s/m], shape (P,)."""
+    k_b: np.ndarray
+    """Bending stiffness [N m/rad], shape (P,)."""
+    c_b: np.ndarray
+    """Bending damping [N m s/rad], shape (P,)."""
+    inertia: np.ndarray
+    """Node moments of inertia [kg m^2], shape (N,)."""
+    rest_axis: np.ndarray
+    """Thread rest direction in node i's body frame [-], shape (P, 3)."""
+    fixed: np.ndarray
+    """Clamped nodes [-], shape (N,), bool."""
+    load: np.ndarray
+    """Constant external force on each node [N], shape (N, 3)."""
+    bilateral: bool
+    """Whether the elements also resist compression."""
+    inv_mass: np.ndarray
+    """1 / mass, 0 for clamped nodes [1/kg], shape (N,)."""
+    radius: np.ndarray
+    """Node sphere radii [m], shape (N,)."""
+    rot_c: np.ndarray
+    """Gershgorin bound of each node's angular damping [N m s/rad], shape (N,)
+    (:func:`rotational_bounds`)."""
+    rot_k: np.ndarray
+    """Gershgorin bound of each node's angular stiffness [N m/rad], shape (N,)."""
+
+
+def model_arrays(model: NetModel) -> ModelArrays:
+    """The model's arrays as the compiled kernels read them."""
     m = model
-    inv_mass = np.where(m.fixed, 0.0, 1.0 / m.mass)  # clamped nodes: no velocity change
-    return (m.mass, m.pairs, m.rest_length, m.axial_stiffness, m.axial_damping,
-            m.transverse_stiffness, m.transverse_damping, m.bending_stiffness,
-            m.bending_damping, m.inertia, m.rest_axis, m.fixed, m.load, m.bilateral, inv_mass,
-            m.radius, *rotational_bounds(m))
+    rot_c, rot_k = rotational_bounds(m)
+    return ModelArrays(
+        mass=m.mass, pairs=m.pairs, rest=m.rest_length, k_a=m.axial_stiffness,
+        c_a=m.axial_damping, k_t=m.transverse_stiffness, c_t=m.transverse_damping,
+        k_b=m.bending_stiffness, c_b=m.bending_damping, inertia=m.inertia,
+        rest_axis=m.rest_axis, fixed=m.fixed, load=m.load, bilateral=m.bilateral,
+        inv_mass=np.where(m.fixed, 0.0, 1.0 / m.mass),  # clamped nodes: no velocity change
+        radius=m.radius, rot_c=rot_c, rot_k=rot_k)
 
 
-class Workspace:
-    """Scratch arrays of the integrators for a net of N nodes and P threads."""
+class Workspace(NamedTuple):
+    """Scratch arrays of the integrators for a net of N nodes and P threads
+    (:func:`workspace`)."""
 
-    def __init__(self, n: int, p: int):
-        self.force = np.zeros((n, 3))
-        """Force on each node [N], shape (N, 3)."""
-        self.torque = np.zeros((n, 3))
-        """Torque on each node [N m], shape (N, 3) (bending only)."""
-        self.tension = np.zeros(p)
-        """Thread tensions [N], shape (P,)."""
-        self.shear = np.zeros(p)
-        """Thread shear force magnitudes [N], shape (P,) (bending only)."""
-        self.along = np.zeros(p)
-        """Implicit block along each thread [kg], shape (P,)."""
-        self.across = np.zeros(p)
-        """Implicit block across each thread [kg], shape (P,)."""
-        self.axis = np.zeros((p, 3))
-        """Thread unit directions [-], shape (P, 3)."""
-        self.dv = np.zeros((n, 3))
-        """Velocity increment of the last step [m/s], shape (N, 3); warm start of CG."""
-        self.cg = np.zeros((4, n, 3))
-        """CG vectors r, z, d, A d, shape (4, N, 3)."""
-        self.block_inv = np.zeros((n, 3, 3))
-        """Inverse block-Jacobi preconditioner [1/kg], shape (N, 3, 3)."""
-        self.cg_iterations = np.zeros(1, dtype=np.int64)
-        """CG iterations summed over all implicit steps [-]."""
-        self.bend = np.zeros((n, 3))
-        """Bending forces of the last evaluation [N], shape (N, 3); held until the next."""
-        self.step_count = np.zeros(1, dtype=np.int64)
-        """Steps taken, for the bending schedule [-]."""
-        self.gain = np.zeros(n)
-        """Angular velocity change per step per unit held bending torque [rad/(N m s)],
-        shape (N,) (:func:`angular_gains`)."""
+    force: np.ndarray
+    """Force on each node [N], shape (N, 3)."""
+    torque: np.ndarray
+    """Torque on each node [N m], shape (N, 3) (bending only)."""
+    tension: np.ndarray
+    """Thread tensions [N], shape (P,)."""
+    shear: np.ndarray
+    """Thread shear force magnitudes [N], shape (P,) (bending only)."""
+    along: np.ndarray
+    """Implicit block along each thread [kg], shape (P,)."""
+    across: np.ndarray
+    """Implicit block across each thread [kg], shape (P,)."""
+    axis: np.ndarray
+    """Thread unit directions [-], shape (P, 3)."""
+    dv: np.ndarray
+    """Velocity increment of the last step [m/s], shape (N, 3); warm start of CG."""
+    cg: np.ndarray
+    """CG vectors r, z, d, A d, shape (4, N, 3)."""
+    block_inv: np.ndarray
+    """Inverse block-Jacobi preconditioner [1/kg], shape (N, 3, 3)."""
+    cg_iterations: np.ndarray
+    """CG iterations summed over all implicit steps [-], shape (1,), int64."""
+    bend: np.ndarray
+    """Bending forces of the last evaluation [N], shape (N, 3); held until the next."""
+    step_count: np.ndarray
+    """Steps taken, for the bending schedule [-], shape (1,), int64."""
+    gain: np.ndarray
+    """Angular velocity change per step per unit held bending torque [rad/(N m s)],
+    shape (N,) (:func:`angular_gains`)."""
 
-    def arrays(self) -> tuple:
-        """The scratch arrays in the order the compiled kernels unpack them."""
-        return (self.force, self.torque, self.tension, self.shear, self.along, self.across,
-                self.axis, self.dv, self.cg, self.block_inv, self.cg_iterations, self.bend,
-                self.step_count, self.gain)
+
+def workspace(n: int, p: int) -> Workspace:
+    """Zeroed scratch arrays for N nodes and P threads."""
+    return Workspace(
+        force=np.zeros((n, 3)), torque=np.zeros((n, 3)), tension=np.zeros(p),
+        shear=np.zeros(p), along=np.zeros(p), across=np.zeros(p), axis=np.zeros((p, 3)),
+        dv=np.zeros((n, 3)), cg=np.zeros((4, n, 3)), block_inv=np.zeros((n, 3, 3)),
+        cg_iterations=np.zeros(1, dtype=np.int64), bend=np.zeros((n, 3)),
+        step_count=np.zeros(1, dtype=np.int64), gain=np.zeros(n))
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -109,14 +161,13 @@ def external_forces(pos, vel, quat, omega, model, work, gravity, external, bendi
     [N] into work's bend, their torques [N m] into work's torque, the threads' shear [N] into
     work's shear. The bending forces then enter as an impulse (w times, on this step only) or,
     with ``hold``, held (once on this and every step until the next evaluation)."""
-    (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
-     bilateral, inv_mass, radius, rot_c, rot_k) = model
-    force, torque, shear, bend = work[0], work[1], work[3], work[11]
+    mass, load = model.mass, model.load
+    force, torque, shear, bend = work.force, work.torque, work.shear, work.bend
     if bending_weight > 0.0:
         torque[:] = 0.0
         bend[:] = 0.0
-        bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b, bend,
-                       torque, shear)
+        bending_forces(pos, vel, quat, omega, model.pairs, model.rest_axis, model.k_t,
+                       model.c_t, model.k_b, model.c_b, bend, torque, shear)
     scale = 1.0 if hold else bending_weight  # (bend stays zero without bending)
     for i in range(pos.shape[0]):
         for a in range(3):
@@ -201,10 +252,11 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     """Velocity increment dv [m/s] of one linearly implicit Euler step (see module doc), into
     work's dv (which holds the previous increment on entry: the CG warm start). Work's force
     must hold the non-axial forces on entry (:func:`external_forces`)."""
-    (mass, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, inertia, rest_axis, fixed, load,
-     bilateral, inv_mass, radius, rot_c, rot_k) = model
-    (force, torque, tension, shear, along, across, axis, dv, cg, block_inv, iterations,
-     bend, step_count, gain) = work
+    mass, pairs, rest, k_a, c_a = model.mass, model.pairs, model.rest, model.k_a, model.c_a
+    fixed, bilateral = model.fixed, model.bilateral
+    force, tension, along, across, axis = (work.force, work.tension, work.along, work.across,
+                                           work.axis)
+    dv, cg, block_inv, iterations = work.dv, work.cg, work.block_inv, work.cg_iterations
     n = pos.shape[0]
     axial_linearization(pos, vel, pairs, rest, k_a, c_a, bilateral, dt, force, tension, along,
                         across, axis)
@@ -291,10 +343,9 @@ def implicit_increment(pos, vel, model, work, dt, tol):
 def symplectic_increment(pos, vel, model, work, dt):
     """Velocity increment dv = dt F / m [m/s] of one symplectic Euler step, into work's dv.
     Work's force must hold the non-axial forces on entry (:func:`external_forces`)."""
-    pairs, rest, k_a, c_a = model[1], model[2], model[3], model[4]
-    bilateral, inv_mass = model[13], model[14]
-    force, tension, dv = work[0], work[2], work[7]
-    axial_forces(pos, vel, pairs, rest, k_a, c_a, bilateral, force, tension)
+    inv_mass, force, dv = model.inv_mass, work.force, work.dv
+    axial_forces(pos, vel, model.pairs, model.rest, model.k_a, model.c_a, model.bilateral,
+                 force, work.tension)
     for i in range(pos.shape[0]):
         h = dt * inv_mass[i]
         for a in range(3):
@@ -308,7 +359,7 @@ def angular_gains(method, weight, dt, model, gain):
     symplectic Euler; for implicit Euler the rotations' own damping and stiffness are
     implicit on the diagonal, scaled by their Gershgorin bounds, dt / (J + h C_g + h^2 K_g)
     with h = weight dt (stable at any step). Zero for clamped nodes."""
-    inertia, fixed, rot_c, rot_k = model[9], model[11], model[16], model[17]
+    inertia, fixed, rot_c, rot_k = model.inertia, model.fixed, model.rot_c, model.rot_k
     h = dt * weight if method == IMPLICIT_EULER else 0.0
     for i in range(gain.shape[0]):
         gain[i] = 0.0 if fixed[i] else dt / (inertia[i] + h * rot_c[i] + h * h * rot_k[i])
@@ -320,7 +371,7 @@ def bending_weight(bending, every, work):
     ``every``-th step, 0 otherwise (they are not evaluated) or without bending."""
     if not bending:
         return 0.0
-    return float(every) if work[12][0] % every == 0 else 0.0
+    return float(every) if work.step_count[0] % every == 0 else 0.0
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -333,7 +384,7 @@ def increment(method, weight, pos, vel, quat, omega, model, work, gravity, exter
         symplectic_increment(pos, vel, model, work, dt)
     else:
         implicit_increment(pos, vel, model, work, dt, tol)
-    work[12][0] += 1
+    work.step_count[0] += 1
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -350,9 +401,9 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
     warm start); either way the orientations are advanced once per interval
     (:func:`~bulletnet.forces.bending.advance_rotation`)."""
     n = pos.shape[0]
-    mass, fixed, radius = model[0], model[11], model[15]
-    torque, dv, gain = work[1], work[7], work[13]
-    flags = contact[20]
+    mass, fixed, radius = model.mass, model.fixed, model.radius
+    torque, dv, gain = work.torque, work.dv, work.gain
+    flags = contact.flags
     touching = flags[0] or flags[1]
     pending = 0  # steps of rotation not yet applied to (quat, omega)
     hold = 1.0 if method == IMPLICIT_EULER else 0.0

@@ -88,12 +88,12 @@ def instrument(profile: Profile, engine, recorder) -> None:
 @nb.njit(cache=True, error_model="numpy")
 def _force_loop(steps, bending, every, pos, vel, quat, omega, model, work, gravity, external):
     """The force kernels of ``steps`` steps on a fixed state, bending on its schedule."""
-    pairs, rest, k_a, c_a, bilateral = model[1], model[2], model[3], model[4], model[13]
     for _ in range(steps):
         weight = bending_weight(bending, every, work)
         external_forces(pos, vel, quat, omega, model, work, gravity, external, weight, False)
-        axial_forces(pos, vel, pairs, rest, k_a, c_a, bilateral, work[0], work[2])
-        work[12][0] += 1
+        axial_forces(pos, vel, model.pairs, model.rest, model.k_a, model.c_a, model.bilateral,
+                     work.force, work.tension)
+        work.step_count[0] += 1
 
 
 def _seconds(run: Callable[[], None]) -> float:
@@ -108,9 +108,9 @@ def step_split(engine, state: NetState) -> dict | None:
     median-ratio pair of :data:`PAIRS` interleaved timings."""
     if engine.steps == 0 or engine.dt <= 0:
         return None
-    from .integrators import Workspace
+    from .integrators import workspace
 
-    work = Workspace(engine.model.node_count, engine.model.thread_count)
+    work = workspace(engine.model.node_count, engine.model.thread_count)
     quat, omega = engine.rotations(state)
 
     def advance(steps):
@@ -120,9 +120,9 @@ def step_split(engine, state: NetState) -> dict | None:
     def forces(steps):
         _force_loop(steps, engine.bending, engine.bending_every, state.position.copy(),
                     state.velocity.copy(), quat.copy(), omega.copy(), engine.arrays,
-                    work.arrays(), engine.gravity, engine.external)
+                    work, engine.gravity, engine.external)
 
-    flags = engine.contact.arrays[20]
+    flags = engine.contact.arrays.flags
     saved = flags.copy()
 
     def without_contact(steps):

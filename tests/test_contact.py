@@ -71,7 +71,7 @@ def contact_world(**overrides):
     model = bn.build_model(scene)
     setup = contact.setup(scene, model, plane_debris())
     a = setup.arrays
-    a[9][:] = (0.0, -0.5, 0.0)  # centre of mass: body origin at the world origin
+    a.com[:] = (0.0, -0.5, 0.0)  # centre of mass: body origin at the world origin
     return scene, model, setup
 
 
@@ -141,7 +141,7 @@ def test_sphere_pair_rebound_conserves_momentum_and_restitution():
     # the reduced mass m_c = m1 m2 / (m1 + m2) (Eq. 11) and the pair's k_c, c_c (Tables 5-6).
     scene, model, setup = contact_world(**{"contact.self_contact": True})
     a = setup.arrays
-    a[20][0] = False  # no debris: nodes only
+    a.flags[0] = False  # no debris: nodes only
     i, j = 0, model.node_count - 1  # a corner node and a corner mass
     pos = np.tile([0.0, 1e3, 0.0], (model.node_count, 1)) + 10 * np.arange(
         model.node_count)[:, None]
@@ -271,7 +271,7 @@ def test_pressed_sphere_pair_settles_at_its_pair_penetration(law):
     scene, model, setup = contact_world(**{"contact.self_contact": True,
                                            "contact.model": law})
     a = setup.arrays
-    a[20][0] = False  # nodes only
+    a.flags[0] = False  # nodes only
     i, j = 0, model.node_count - 1  # a corner node and a corner mass
     pos = np.tile([0.0, 1e3, 0.0], (model.node_count, 1)) + 10 * np.arange(
         model.node_count)[:, None]

@@ -39,13 +39,13 @@ def pull_apart(model: NetModel, method: str, dt: float, t_end: float, v0: float 
     history [m] sampled every step and the final relative velocity [m/s]."""
     pos = np.array([[0.0, 0, 0], [L0, 0, 0]])
     vel = np.array([[-v0 / 2, 0, 0], [v0 / 2, 0, 0]])
-    w = integrators.Workspace(2, 1)
+    w = integrators.workspace(2, 1)
     steps = round(t_end / dt)
     lengths = np.empty(steps)
     for s in range(steps):
         integrators.advance(integrators.INTEGRATOR_IDS[method], False, 1, 1, pos, vel,
                             np.zeros((0, 4)), np.zeros((0, 3)), integrators.model_arrays(model),
-                            w.arrays(), np.zeros(3), np.zeros((2, 3)), dt, 1e-12,
+                            w, np.zeros(3), np.zeros((2, 3)), dt, 1e-12,
                             contact.setup(Scenario(), model).arrays, s * dt)
         lengths[s] = pos[1, 0] - pos[0, 0]
     return lengths, vel[1, 0] - vel[0, 0]

@@ -54,8 +54,8 @@ class Engine(ABC):
         self.scenario = scenario
         self.model = model
         self.arrays = integrators.model_arrays(model)
-        self.work = integrators.Workspace(model.node_count, model.thread_count)
-        self._loads_work = integrators.Workspace(model.node_count, model.thread_count)
+        self.work = integrators.workspace(model.node_count, model.thread_count)
+        self._loads_work = integrators.workspace(model.node_count, model.thread_count)
         """Scratch space of :meth:`thread_loads` (the stepping workspace keeps its warm start)."""
         self.bending = scenario.bending.enabled
         """Whether nodes carry orientations and the bending springs act."""
@@ -90,10 +90,10 @@ class Engine(ABC):
         node-node contact [s] (-1: none yet). Resets the accumulators."""
         a = self.contact.arrays
         span = max(self._impulse_time, 1e-300)
-        out = {"node_force": a[14] / span, "self_force": a[15] / span,
-               "first_contact": a[19].copy()}
-        a[14][:] = 0.0
-        a[15][:] = 0.0
+        out = {"node_force": a.node_impulse / span, "self_force": a.self_impulse / span,
+               "first_contact": a.first_contact.copy()}
+        a.node_impulse[:] = 0.0
+        a.self_impulse[:] = 0.0
         self._impulse_time = 0.0
         return out
 
@@ -127,7 +127,7 @@ class Engine(ABC):
         quat, omega = self.rotations(state)
         integrators.increment(integrators.SYMPLECTIC_EULER, 1.0 if self.bending else 0.0,
                               state.position, state.velocity, quat, omega, self.arrays,
-                              work.arrays(), self.gravity, self.external, 1.0, 0.0)
+                              work, self.gravity, self.external, 1.0, 0.0)
         return work.tension.copy(), work.shear.copy()
 
     def stats(self) -> dict:
@@ -136,8 +136,9 @@ class Engine(ABC):
         out = {"steps": self.steps, "cg_iterations": int(self.work.cg_iterations[0])}
         if self.contact.enabled:
             a = self.contact.arrays
-            out.update(overlap_projections=int(a[23][0]), overlap_projected_m=float(a[23][1]),
-                       pair_list_builds=int(a[17][2]))
+            out.update(overlap_projections=int(a.projections[0]),
+                       overlap_projected_m=float(a.projections[1]),
+                       pair_list_builds=int(a.pair_meta[2]))
         return out
 
     def close(self) -> None:  # noqa: B027 (optional hook; only bullet holds resources)

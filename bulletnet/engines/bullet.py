@@ -130,9 +130,9 @@ class BulletEngine(Engine):
         first_step = self.steps
         for _ in range(steps):
             quat, omega = self.rotations(state)
-            weight = integrators.bending_weight(self.bending, self.bending_every, w.arrays())
+            weight = integrators.bending_weight(self.bending, self.bending_every, w)
             integrators.increment(method, weight, state.position, state.velocity, quat,
-                                  omega, self.arrays, w.arrays(), self.gravity, self.external,
+                                  omega, self.arrays, w, self.gravity, self.external,
                                   dt, self.cg_tolerance)
             force = w.dv * mass_over_dt
             for body, f, x in zip(self.bodies, force.tolist(), state.position.tolist(),
@@ -160,7 +160,7 @@ class BulletEngine(Engine):
 
     def _collect_contacts(self, dt: float, t: float) -> None:
         """Add the step's PyBullet contact impulses (normal force x dt) to the per-node
-        accumulators: debris contacts to contact[14], node pairs to contact[15]."""
+        accumulators: debris contacts to ``node_impulse``, node pairs to ``self_impulse``."""
         a = self.contact.arrays
         node = self._node_of_body
         for point in self.client.getContactPoints():
@@ -169,14 +169,14 @@ class BulletEngine(Engine):
                 continue
             if self.debris_body in (body_a, body_b):
                 other = body_b if body_a == self.debris_body else body_a
-                a[14][node[other]] += force * dt
-                if a[19][0] < 0:
-                    a[19][0] = t
+                a.node_impulse[node[other]] += force * dt
+                if a.first_contact[0] < 0:
+                    a.first_contact[0] = t
             else:
-                a[15][node[body_a]] += force * dt
-                a[15][node[body_b]] += force * dt
-                if a[19][1] < 0:
-                    a[19][1] = t
+                a.self_impulse[node[body_a]] += force * dt
+                a.self_impulse[node[body_b]] += force * dt
+                if a.first_contact[1] < 0:
+                    a.first_contact[1] = t
 
     def close(self) -> None:
         if self.client is not None:

@@ -42,19 +42,19 @@ class FastEngine(Engine):
         while done < steps:
             todo = min(chunk, steps - done)
             if has_debris:
-                a[9][:], a[10][0], a[11][:], a[12][0] = (state.debris[:3], state.debris[3:7],
-                                                         state.debris[7:10], state.debris[10:])
-                a[13][:] = 0.0
+                a.com[:], a.quat[0] = state.debris[:3], state.debris[3:7]
+                a.velocity[:], a.omega[0] = state.debris[7:10], state.debris[10:]
+                a.impulse[:] = 0.0
             taken = integrators.advance(
                 integrators.INTEGRATOR_IDS[self.integrator], self.bending, self.bending_every,
                 todo, state.position, state.velocity, quat, omega, self.arrays,
-                self.work.arrays(), self.gravity, self.external, dt, self.cg_tolerance, a,
+                self.work, self.gravity, self.external, dt, self.cg_tolerance, a,
                 state.time + done * dt)
             if taken < todo:  # the self-contact list is full: grow it, go on
                 self.contact = contact.grow_pair_list(self.contact)
                 a = self.contact.arrays
             if has_debris and taken:
-                self.rigid.step(a[13], taken * dt, state.debris)
+                self.rigid.step(a.impulse, taken * dt, state.debris)
             done += taken
             self._impulse_time += taken * dt
             if not np.isfinite(state.position).all():

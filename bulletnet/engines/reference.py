@@ -56,7 +56,7 @@ class ReferenceEngine(Engine):
         m, w = self.model, self.work
         pos, vel, quat, omega = self._split(y)
         integrators.increment(integrators.SYMPLECTIC_EULER, 1.0 if self.bending else 0.0, pos,
-                              vel, quat, omega, self.arrays, w.arrays(), self.gravity,
+                              vel, quat, omega, self.arrays, w, self.gravity,
                               self.external, 1.0, 0.0)  # dt = 1: dv is the acceleration [m/s^2]
         parts = [vel * self._free, w.dv]
         if self.bending:
