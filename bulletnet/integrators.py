@@ -28,8 +28,16 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from . import grid as grid_kernels
 from .contact import contact_stage, ensure_pairs
-from .forces.axial import add_pair, axial_forces, axial_linearization
+from .forces.axial import (
+    add_block,
+    add_thread_blocks,
+    add_thread_rhs,
+    axial_forces,
+    axial_linearization,
+    invert3,
+)
 from .forces.bending import advance_rotation, bending_forces
 from .model import NetModel
 
@@ -154,6 +162,16 @@ def workspace(n: int, p: int) -> Workspace:
 
 
 @nb.njit(cache=True, error_model="numpy")
+def evaluate_bending(pos, vel, quat, omega, model, work):
+    """The bending springs afresh: forces [N] into work's bend, torques [N m] into its
+    torque, the threads' shear [N] into its shear."""
+    work.torque[:] = 0.0
+    work.bend[:] = 0.0
+    bending_forces(pos, vel, quat, omega, model.pairs, model.rest_axis, model.k_t, model.c_t,
+                   model.k_b, model.c_b, work.bend, work.torque, work.shear)
+
+
+@nb.njit(cache=True, error_model="numpy")
 def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending_weight,
                     hold):
     """Gravity, loads, ``external`` [N] (N, 3) and the bending forces into work's force.
@@ -161,13 +179,9 @@ def external_forces(pos, vel, quat, omega, model, work, gravity, external, bendi
     [N] into work's bend, their torques [N m] into work's torque, the threads' shear [N] into
     work's shear. The bending forces then enter as an impulse (w times, on this step only) or,
     with ``hold``, held (once on this and every step until the next evaluation)."""
-    mass, load = model.mass, model.load
-    force, torque, shear, bend = work.force, work.torque, work.shear, work.bend
+    mass, load, force, bend = model.mass, model.load, work.force, work.bend
     if bending_weight > 0.0:
-        torque[:] = 0.0
-        bend[:] = 0.0
-        bending_forces(pos, vel, quat, omega, model.pairs, model.rest_axis, model.k_t,
-                       model.c_t, model.k_b, model.c_b, bend, torque, shear)
+        evaluate_bending(pos, vel, quat, omega, model, work)
     scale = 1.0 if hold else bending_weight  # (bend stays zero without bending)
     for i in range(pos.shape[0]):
         for a in range(3):
@@ -181,16 +195,7 @@ def _apply_blocks(x, pairs, along, across, axis, mass, fixed, out):
     for i in range(x.shape[0]):
         for a in range(3):
             out[i, a] = mass[i] * x[i, a]
-    for p in range(pairs.shape[0]):
-        if along[p] == 0.0 and across[p] == 0.0:
-            continue
-        i, j = pairs[p, 0], pairs[p, 1]
-        d0 = x[i, 0] - x[j, 0]
-        d1 = x[i, 1] - x[j, 1]
-        d2 = x[i, 2] - x[j, 2]
-        s = (along[p] - across[p]) * (d0 * axis[p, 0] + d1 * axis[p, 1] + d2 * axis[p, 2])
-        add_pair(out, i, j, across[p] * d0 + s * axis[p, 0], across[p] * d1 + s * axis[p, 1],
-                 across[p] * d2 + s * axis[p, 2])
+    add_thread_blocks(x, pairs, along, across, axis, out)
     for i in range(x.shape[0]):
         if fixed[i]:
             out[i, 0], out[i, 1], out[i, 2] = x[i, 0], x[i, 1], x[i, 2]
@@ -200,33 +205,25 @@ def _apply_blocks(x, pairs, along, across, axis, mass, fixed, out):
 def _block_jacobi(pairs, along, across, axis, mass, inv):
     """Invert each node's 3x3 diagonal block of the implicit system into ``inv``."""
     n = mass.shape[0]
+    flat = inv.reshape((n, 9))
     for i in range(n):
-        for a in range(3):
-            for b in range(3):
-                inv[i, a, b] = mass[i] if a == b else 0.0
+        for a in range(9):
+            flat[i, a] = mass[i] if a % 4 == 0 else 0.0
     for p in range(pairs.shape[0]):
         if along[p] == 0.0 and across[p] == 0.0:
             continue
         for node in (pairs[p, 0], pairs[p, 1]):
-            for a in range(3):
-                for b in range(3):
-                    inv[node, a, b] += (along[p] - across[p]) * axis[p, a] * axis[p, b]
-                inv[node, a, a] += across[p]
+            m = add_block((flat[node, 0], flat[node, 1], flat[node, 2], flat[node, 3],
+                           flat[node, 4], flat[node, 5], flat[node, 6], flat[node, 7],
+                           flat[node, 8]), along[p], across[p], axis[p, 0], axis[p, 1],
+                          axis[p, 2])
+            for a in range(9):
+                flat[node, a] = m[a]
     for i in range(n):
-        m = inv[i]
-        c00 = m[1, 1] * m[2, 2] - m[1, 2] * m[2, 1]
-        c01 = m[1, 2] * m[2, 0] - m[1, 0] * m[2, 2]
-        c02 = m[1, 0] * m[2, 1] - m[1, 1] * m[2, 0]
-        det = m[0, 0] * c00 + m[0, 1] * c01 + m[0, 2] * c02
-        c10 = m[0, 2] * m[2, 1] - m[0, 1] * m[2, 2]
-        c11 = m[0, 0] * m[2, 2] - m[0, 2] * m[2, 0]
-        c12 = m[0, 1] * m[2, 0] - m[0, 0] * m[2, 1]
-        c20 = m[0, 1] * m[1, 2] - m[0, 2] * m[1, 1]
-        c21 = m[0, 2] * m[1, 0] - m[0, 0] * m[1, 2]
-        c22 = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]
-        m[0, 0], m[0, 1], m[0, 2] = c00 / det, c10 / det, c20 / det
-        m[1, 0], m[1, 1], m[1, 2] = c01 / det, c11 / det, c21 / det
-        m[2, 0], m[2, 1], m[2, 2] = c02 / det, c12 / det, c22 / det
+        m = invert3((flat[i, 0], flat[i, 1], flat[i, 2], flat[i, 3], flat[i, 4], flat[i, 5],
+                     flat[i, 6], flat[i, 7], flat[i, 8]))
+        for a in range(9):
+            flat[i, a] = m[a]
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -265,17 +262,7 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     for i in range(n):
         for a in range(3):
             r[i, a] = dt * force[i, a]
-    for p in range(pairs.shape[0]):
-        if along[p] == 0.0:
-            continue
-        i, j = pairs[p, 0], pairs[p, 1]
-        kt = dt * dt * k_a[p]
-        d0 = vel[i, 0] - vel[j, 0]
-        d1 = vel[i, 1] - vel[j, 1]
-        d2 = vel[i, 2] - vel[j, 2]
-        s = (kt - across[p]) * (d0 * axis[p, 0] + d1 * axis[p, 1] + d2 * axis[p, 2])
-        add_pair(r, j, i, across[p] * d0 + s * axis[p, 0], across[p] * d1 + s * axis[p, 1],
-                 across[p] * d2 + s * axis[p, 2])
+    add_thread_rhs(vel, pairs, k_a, along, across, axis, dt, r)
     clamped = False
     for i in range(n):
         if fixed[i]:
@@ -388,8 +375,23 @@ def increment(method, weight, pos, vel, quat, omega, model, work, gravity, exter
 
 
 @nb.njit(cache=True, error_model="numpy")
+def grid_step(method, weight, pos, vel, quat, omega, model, work, grid, views, dt, tol):
+    """One whole step of ``method`` on the grid's rows (:mod:`bulletnet.grid`): the bending
+    springs (with ``weight``, as :func:`external_forces`), the threads, the velocity and
+    position update; counts the step. ``pos``, ``vel`` and work's dv and bend must be the
+    grid's views."""
+    if weight > 0.0:
+        evaluate_bending(pos, vel, quat, omega, model, work)
+    if method == SYMPLECTIC_EULER:
+        grid_kernels.symplectic_step(grid, views, dt, weight)
+    else:
+        grid_kernels.implicit_step(grid, views, dt, tol, work.cg_iterations)
+    work.step_count[0] += 1
+
+
+@nb.njit(cache=True, error_model="numpy")
 def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, gravity,
-            external, dt, tol, contact, t0):
+            external, dt, tol, contact, t0, grid, views):
     """Take up to ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]) from
     time ``t0`` [s], the bending forces every ``every`` steps, then contact
     (:func:`bulletnet.contact.contact_stage`, if ``contact`` has any on). Returns the steps
@@ -399,7 +401,9 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
     as one impulse standing for the interval (symplectic Euler: the multirate step stays
     symplectic) or are held over it (implicit Euler: a smooth right-hand side keeps the CG
     warm start); either way the orientations are advanced once per interval
-    (:func:`~bulletnet.forces.bending.advance_rotation`)."""
+    (:func:`~bulletnet.forces.bending.advance_rotation`). With a non-empty ``grid`` the
+    threads are its stencils (:func:`grid_step`): ``pos``, ``vel`` and work's dv and bend are
+    then its ``views``, and gravity and external have been loaded into its base."""
     n = pos.shape[0]
     mass, fixed, radius = model.mass, model.fixed, model.radius
     torque, dv, gain = work.torque, work.dv, work.gain
@@ -407,6 +411,11 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
     touching = flags[0] or flags[1]
     pending = 0  # steps of rotation not yet applied to (quat, omega)
     hold = 1.0 if method == IMPLICIT_EULER else 0.0
+    if grid.n and not bending and not touching:
+        grid_kernels.free_steps(grid, views, method == IMPLICIT_EULER, steps, dt, tol,
+                                work.cg_iterations)
+        work.step_count[0] += steps
+        return steps
     taken = 0
     for step in range(steps):
         if touching and not ensure_pairs(pos, radius, contact):
@@ -415,12 +424,15 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
         if weight > 0.0 and pending > 0:
             advance_rotation(quat, omega, gain, torque, hold, pending, dt)
             pending = 0
-        increment(method, weight, pos, vel, quat, omega, model, work, gravity, external, dt,
-                  tol)
-        for i in range(n):
-            for a in range(3):
-                vel[i, a] += dv[i, a]
-                pos[i, a] += dt * vel[i, a]
+        if grid.n:
+            grid_step(method, weight, pos, vel, quat, omega, model, work, grid, views, dt, tol)
+        else:
+            increment(method, weight, pos, vel, quat, omega, model, work, gravity, external,
+                      dt, tol)
+            for i in range(n):
+                for a in range(3):
+                    vel[i, a] += dv[i, a]
+                    pos[i, a] += dt * vel[i, a]
         if touching:
             contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t0 + step * dt)
         if bending:

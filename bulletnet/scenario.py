@@ -199,6 +199,10 @@ class Simulation:
     the 3 s deployment with bending at 3e-5 s, 1e-4, 1e-6 and 1e-8 give 0.649, 0.656 and
     0.662 mm (3.8, 11.6 and 19.1 iterations a step); without bending 1e-4 costs 15-70 % more
     error than 1e-8 (docs/speed.md)."""
+    kernels: str = _f("grid", "-", "choice", ("grid", "pairs"))
+    """Thread kernels of the fast engine: ``grid`` (stencils over the net's rows and columns,
+    for an Eq. 1 net; any other model falls back to pairs) or ``pairs`` (one loop over the
+    thread list, the general path). Both give the same results (bit for bit, tested)."""
     rtol: float = _f(1e-8, "-", ">0")
     """Relative tolerance of the reference engine [-]."""
     atol: float = _f(1e-10, "-", ">0")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import contact, integrators
+from .. import grid as grid_kernels
 from ..debris import RigidDebris
 from ..state import NetState
 from .base import Engine
@@ -25,6 +26,21 @@ class FastEngine(Engine):
         super().__init__(scenario, model)
         self.rigid = None
         """The debris' PyBullet world (created on the first step)."""
+        use_grid = (scenario.simulation.kernels == "grid" and self.dt > 0
+                    and grid_kernels.applies(model))
+        self.grid = grid_kernels.build(model if use_grid else None)
+        """The net's grid threads and structure-of-arrays state (empty: the pair-list path)."""
+        self.views = grid_kernels.views(self.grid)
+        """(N, 3) views of the grid's rows."""
+        self.step_work = (self.work._replace(dv=self.views.dv, bend=self.views.bend)
+                          if use_grid else self.work)
+        """The workspace the steps use (on the grid: its velocity increment and bending
+        forces are the grid's rows)."""
+
+    @property
+    def kernels(self) -> str:
+        """The thread kernels in use: grid or pairs."""
+        return "grid" if self.grid.n else "pairs"
 
     def advance(self, state: NetState, t_end: float) -> None:
         interval = t_end - state.time
@@ -38,6 +54,13 @@ class FastEngine(Engine):
             self.rigid = RigidDebris(self.debris, state.debris)
         quat, omega = self.rotations(state)
         a = self.contact.arrays
+        on_grid = self.grid.n > 0
+        if on_grid:
+            base = self.model.mass[:, None] * self.gravity + self.model.load + self.external
+            grid_kernels.load(self.grid, state.position, state.velocity, base)
+            pos, vel = self.views.position, self.views.velocity
+        else:
+            pos, vel = state.position, state.velocity
         done = 0
         while done < steps:
             todo = min(chunk, steps - done)
@@ -47,9 +70,9 @@ class FastEngine(Engine):
                 a.impulse[:] = 0.0
             taken = integrators.advance(
                 integrators.INTEGRATOR_IDS[self.integrator], self.bending, self.bending_every,
-                todo, state.position, state.velocity, quat, omega, self.arrays,
-                self.work, self.gravity, self.external, dt, self.cg_tolerance, a,
-                state.time + done * dt)
+                todo, pos, vel, quat, omega, self.arrays, self.step_work, self.gravity,
+                self.external, dt, self.cg_tolerance, a, state.time + done * dt, self.grid,
+                self.views)
             if taken < todo:  # the self-contact list is full: grow it, go on
                 self.contact = contact.grow_pair_list(self.contact)
                 a = self.contact.arrays
@@ -57,8 +80,10 @@ class FastEngine(Engine):
                 self.rigid.step(a.impulse, taken * dt, state.debris)
             done += taken
             self._impulse_time += taken * dt
-            if not np.isfinite(state.position).all():
+            if not np.isfinite(pos).all():
                 break
+        if on_grid:
+            grid_kernels.store(self.grid, state.position, state.velocity)
         self.steps += done
         state.time = t_end
 

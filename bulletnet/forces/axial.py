@@ -25,26 +25,30 @@ def add_pair(array, i, j, x, y, z):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def thread_tension(p, pos, vel, pairs, rest, k, c, bilateral):
-    """Tension T [N] of thread p and its unit direction e (i -> j) and length l [m].
+def tension_law(dx, dy, dz, du, dv, dw, rest, k, c, bilateral):
+    """Eq. 3 for one thread from its end-to-end vector (dx, dy, dz) [m] and relative velocity
+    (du, dv, dw) [m/s], rest length [m], stiffness [N/m] and damping [N s/m].
 
-    Returns (T, ex, ey, ez, l); T is 0.0 for a slack thread or one closing faster than its
-    spring holds (Eq. 3)."""
-    i, j = pairs[p, 0], pairs[p, 1]
-    dx = pos[j, 0] - pos[i, 0]
-    dy = pos[j, 1] - pos[i, 1]
-    dz = pos[j, 2] - pos[i, 2]
+    Returns (T [N], ex, ey, ez, l [m]); T is 0.0 for a slack thread or one closing faster than
+    its spring holds (unless ``bilateral``). Branch-free, so loops over threads vectorize; the
+    direction is computed for a slack thread too (and is not finite for l = 0: callers use it
+    only where T != 0)."""
     length = np.sqrt(dx * dx + dy * dy + dz * dz)
-    if length <= rest[p] and not bilateral:
-        return 0.0, 0.0, 0.0, 0.0, length
     inv = 1.0 / length
     ex, ey, ez = dx * inv, dy * inv, dz * inv
-    vr = ((vel[j, 0] - vel[i, 0]) * ex + (vel[j, 1] - vel[i, 1]) * ey
-          + (vel[j, 2] - vel[i, 2]) * ez)
-    tension = k[p] * (length - rest[p]) + c[p] * vr
-    if tension <= 0.0 and not bilateral:
-        return 0.0, ex, ey, ez, length
-    return tension, ex, ey, ez, length
+    tension = k * (length - rest) + c * (du * ex + dv * ey + dw * ez)
+    taut = bilateral | ((length > rest) & (tension > 0.0))
+    return (tension if taut else 0.0), ex, ey, ez, length
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def thread_tension(p, pos, vel, pairs, rest, k, c, bilateral):
+    """Tension T [N] of thread p (:func:`tension_law`), its unit direction e (i -> j) and
+    length l [m]: (T, ex, ey, ez, l)."""
+    i, j = pairs[p, 0], pairs[p, 1]
+    return tension_law(pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2],
+                       vel[j, 0] - vel[i, 0], vel[j, 1] - vel[i, 1], vel[j, 2] - vel[i, 2],
+                       rest[p], k[p], c[p], bilateral)
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -78,6 +82,69 @@ def axial_linearization(pos, vel, pairs, rest, k, c, bilateral, dt, force, tensi
         else:
             along[p] = 0.0
             across[p] = 0.0
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def block_product(d0, d1, d2, along, across, e0, e1, e2):
+    """A thread's block, (along - across) e e^T + across I [kg], times the difference d of its
+    end nodes' vectors: across d + (along - across) (d . e) e."""
+    s = (along - across) * (d0 * e0 + d1 * e1 + d2 * e2)
+    return across * d0 + s * e0, across * d1 + s * e1, across * d2 + s * e2
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def add_block(m, along, across, ex, ey, ez):
+    """m + a thread's implicit block, (along - across) e e^T + across I [kg], with m a 3 x 3
+    matrix as a row-major 9-tuple."""
+    g = along - across
+    return (m[0] + g * ex * ex + across, m[1] + g * ex * ey, m[2] + g * ex * ez,
+            m[3] + g * ey * ex, m[4] + g * ey * ey + across, m[5] + g * ey * ez,
+            m[6] + g * ez * ex, m[7] + g * ez * ey, m[8] + g * ez * ez + across)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def invert3(m):
+    """The inverse of a 3 x 3 matrix given and returned as a row-major 9-tuple (cofactors over
+    the determinant)."""
+    c00 = m[4] * m[8] - m[5] * m[7]
+    c01 = m[5] * m[6] - m[3] * m[8]
+    c02 = m[3] * m[7] - m[4] * m[6]
+    det = m[0] * c00 + m[1] * c01 + m[2] * c02
+    c10 = m[2] * m[7] - m[1] * m[8]
+    c11 = m[0] * m[8] - m[2] * m[6]
+    c12 = m[1] * m[6] - m[0] * m[7]
+    c20 = m[1] * m[5] - m[2] * m[4]
+    c21 = m[2] * m[3] - m[0] * m[5]
+    c22 = m[0] * m[4] - m[1] * m[3]
+    return (c00 / det, c10 / det, c20 / det, c01 / det, c11 / det, c21 / det,
+            c02 / det, c12 / det, c22 / det)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def add_thread_blocks(x, pairs, along, across, axis, out):
+    """out += the threads' implicit blocks applied to x (each thread's
+    :func:`block_product` of x_i - x_j, +on i and -on j); slack threads are skipped."""
+    for p in range(pairs.shape[0]):
+        if along[p] == 0.0 and across[p] == 0.0:
+            continue
+        i, j = pairs[p, 0], pairs[p, 1]
+        w0, w1, w2 = block_product(x[i, 0] - x[j, 0], x[i, 1] - x[j, 1], x[i, 2] - x[j, 2],
+                                   along[p], across[p], axis[p, 0], axis[p, 1], axis[p, 2])
+        add_pair(out, i, j, w0, w1, w2)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def add_thread_rhs(vel, pairs, k, along, across, axis, dt, r):
+    """r -= dt^2 K v, the threads' stiffness part of implicit Euler's right-hand side: each
+    taut thread's block with along = dt^2 k [kg] applied to v_i - v_j [m/s], -on i, +on j."""
+    for p in range(pairs.shape[0]):
+        if along[p] == 0.0:
+            continue
+        i, j = pairs[p, 0], pairs[p, 1]
+        w0, w1, w2 = block_product(vel[i, 0] - vel[j, 0], vel[i, 1] - vel[j, 1],
+                                   vel[i, 2] - vel[j, 2], dt * dt * k[p], across[p],
+                                   axis[p, 0], axis[p, 1], axis[p, 2])
+        add_pair(r, j, i, w0, w1, w2)
 
 
 def axial_energy(pos: np.ndarray, pairs: np.ndarray, rest: np.ndarray, k: np.ndarray) -> float:

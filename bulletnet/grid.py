@@ -1,0 +1,506 @@
+"""The regular net's threads as stencils (Eq. 1) over a structure-of-arrays state.
+
+An Ns x Ns net's inner threads join row neighbours (node i -> i + 1, the "horizontal"
+threads h(i)) and column neighbours (i -> i + Ns, the "vertical" threads v(i)). Over
+contiguous index ranges, with x, y, z (and u, v, w) in separate rows, every such thread is the
+same arithmetic on shifted slices: the loops have no gathers and no scatter-adds, and numba
+emits packed vector instructions for them. Each thread's result (T e, or a block product) is
+stored once; each node then sums its four neighbours' entries, in the order in which the
+pair-list kernels add them (v(i - Ns), h(i - 1), h(i), v(i), then every other element), so the
+two paths give the same floating-point results, bit for bit.
+
+Everything that is not a grid thread (the corner threads, and any element added later) stays
+in the general pair-list kernels (:mod:`bulletnet.forces.axial`), which read the same memory
+through (N, 3) views of the rows (:attr:`GridViews`). The contact stage and the bending
+springs read those views too.
+
+Layout: :class:`Grid` holds rows of length L >= N (N nodes, padded to a multiple of 8), all
+carved from one 64-byte aligned buffer; thread rows have Ns leading zeros so that thread
+i - Ns and i - 1 of node i exist for every node.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numba as nb
+import numpy as np
+
+from .forces.axial import (
+    add_block,
+    add_thread_blocks,
+    add_thread_rhs,
+    axial_forces,
+    axial_linearization,
+    block_product,
+    invert3,
+    tension_law,
+)
+from .model import NetModel
+from .topology import thread_pairs
+
+ALIGN = 64
+"""Alignment of every row [bytes] (a cache line; a whole AVX-512 register)."""
+
+
+class Grid(NamedTuple):
+    """The grid threads' parameters and the structure-of-arrays state and scratch of a net of
+    Ns x Ns nodes, N nodes in all (the net, then the corner masses and any other nodes), and
+    Q other (pair-list) threads. Rows of node quantities have length L >= N."""
+
+    ns: int
+    """Ns, nodes per side [-]."""
+    n: int
+    """Ns^2, the net's nodes [-]; nodes n .. N - 1 have no grid thread."""
+    count: int
+    """N, all nodes [-]."""
+    h_rest: np.ndarray
+    """Rest length of thread i -> i + 1 [m] (+inf at a row's end: never taut), (Ns^2 - 1,)."""
+    h_k: np.ndarray
+    """Its axial stiffness [N/m], shape (Ns^2 - 1,)."""
+    h_c: np.ndarray
+    """Its axial damping [N s/m], shape (Ns^2 - 1,)."""
+    v_rest: np.ndarray
+    """Rest length of thread i -> i + Ns [m], shape (Ns^2 - Ns,)."""
+    v_k: np.ndarray
+    """Its axial stiffness [N/m], shape (Ns^2 - Ns,)."""
+    v_c: np.ndarray
+    """Its axial damping [N s/m], shape (Ns^2 - Ns,)."""
+    o_pairs: np.ndarray
+    """The other threads' end nodes [-], shape (Q, 2), int64."""
+    o_rest: np.ndarray
+    """Their rest lengths [m], shape (Q,)."""
+    o_k: np.ndarray
+    """Their axial stiffness [N/m], shape (Q,)."""
+    o_c: np.ndarray
+    """Their axial damping [N s/m], shape (Q,)."""
+    mass: np.ndarray
+    """Node masses [kg], shape (N,)."""
+    inv_mass: np.ndarray
+    """1 / mass [1/kg], shape (N,)."""
+    x: np.ndarray
+    """Positions [m], shape (3, L)."""
+    v: np.ndarray
+    """Velocities [m/s], shape (3, L)."""
+    dv: np.ndarray
+    """Velocity increment of the last step [m/s], shape (3, L); CG's warm start."""
+    base: np.ndarray
+    """Gravity, loads and external forces, m g + load + external [N], shape (3, L)."""
+    bend: np.ndarray
+    """Bending forces of the last evaluation [N], shape (3, L)."""
+    other: np.ndarray
+    """Forces of the other threads [N], shape (3, L)."""
+    th: np.ndarray
+    """T e of thread h(i) at column Ns + i [N], shape (3, Ns + Ns^2)."""
+    tv: np.ndarray
+    """T e of thread v(i) at column Ns + i [N], shape (3, Ns + Ns^2)."""
+    eh: np.ndarray
+    """Unit direction of h(i) at column Ns + i [-], shape (3, Ns + Ns^2) (implicit Euler)."""
+    ev: np.ndarray
+    """Unit direction of v(i) [-], shape (3, Ns + Ns^2) (implicit Euler)."""
+    blocks: np.ndarray
+    """along, across of h(i), then of v(i), at column Ns + i [kg], shape (4, Ns + Ns^2):
+    the implicit-Euler block along - across on e e^T plus across on the identity."""
+    wh: np.ndarray
+    """A block of h(i) times its nodes' difference [kg m/s], shape (3, Ns + Ns^2)."""
+    wv: np.ndarray
+    """The same for v(i), shape (3, Ns + Ns^2)."""
+    cg: np.ndarray
+    """CG vectors r, z, d, A d [kg m/s, m/s, m/s, kg m/s], shape (4, 3, L)."""
+    block_inv: np.ndarray
+    """Inverse block-Jacobi preconditioner, row-major 3 x 3 per node [1/kg], shape (9, L)."""
+    o_tension: np.ndarray
+    """Tension of the other threads [N], shape (Q,)."""
+    o_along: np.ndarray
+    """Their implicit block along the thread [kg], shape (Q,)."""
+    o_across: np.ndarray
+    """Their implicit block across the thread [kg], shape (Q,)."""
+    o_axis: np.ndarray
+    """Their unit directions [-], shape (Q, 3)."""
+
+
+class GridViews(NamedTuple):
+    """(N, 3) views of a grid's rows, for the pair-list kernels, the contact stage and the
+    bending springs (they write through to the rows)."""
+
+    position: np.ndarray
+    """Positions [m], shape (N, 3)."""
+    velocity: np.ndarray
+    """Velocities [m/s], shape (N, 3)."""
+    dv: np.ndarray
+    """Velocity increment of the last step [m/s], shape (N, 3)."""
+    bend: np.ndarray
+    """Bending forces [N], shape (N, 3)."""
+    other: np.ndarray
+    """Forces of the other threads [N], shape (N, 3)."""
+
+
+def applies(model: NetModel) -> bool:
+    """Whether ``model`` is a net the grid kernels cover: Eq. 1's threads first, tension-only,
+    nothing clamped (the cantilever beam and any other model take the pair-list path)."""
+    ns = model.nodes_per_side
+    inner = 2 * ns * (ns - 1)
+    return (ns >= 2 and not model.bilateral and not model.fixed.any()
+            and model.node_count >= ns * ns and model.thread_count >= inner
+            and np.array_equal(model.pairs[:inner], thread_pairs(ns)[:inner]))
+
+
+def _rows(total: int) -> int:
+    """Row length: ``total`` rounded up to a multiple of 8 float64 (64 bytes)."""
+    return -(-total // 8) * 8
+
+
+def _carve(shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
+    """Zeroed float64 arrays of ``shapes``, each starting on an :data:`ALIGN` boundary, all in
+    one allocation (their relative placement then does not change from run to run)."""
+    sizes = [_rows(int(np.prod(s))) for s in shapes]
+    buffer = np.zeros(sum(sizes) + ALIGN // 8)
+    start = (-buffer.ctypes.data % ALIGN) // 8
+    out = []
+    for shape, size in zip(shapes, sizes, strict=True):
+        out.append(buffer[start:start + int(np.prod(shape))].reshape(shape))
+        start += size
+    return out
+
+
+def build(model: NetModel | None) -> Grid:
+    """The grid of a net that :func:`applies`: its threads' parameters rearranged by stencil
+    and zeroed state and scratch; with None, an empty grid (``n`` 0: the pair-list path)."""
+    ns = model.nodes_per_side if model is not None else 0
+    n, count = ns * ns, model.node_count if model is not None else 0
+    inner = 2 * ns * (ns - 1)
+    h_rest = np.full(max(n - 1, 0), np.inf)
+    h_k, h_c = np.zeros_like(h_rest), np.zeros_like(h_rest)
+    v_rest, v_k, v_c = np.zeros(n - ns), np.zeros(n - ns), np.zeros(n - ns)
+    for p, (i, j) in enumerate(model.pairs[:inner] if model is not None else ()):
+        if j == i + 1:
+            h_rest[i], h_k[i], h_c[i] = (model.rest_length[p], model.axial_stiffness[p],
+                                         model.axial_damping[p])
+        else:
+            v_rest[i], v_k[i], v_c[i] = (model.rest_length[p], model.axial_stiffness[p],
+                                         model.axial_damping[p])
+    others = slice(inner, None)
+    o_pairs = model.pairs[others].copy() if model is not None else np.zeros((0, 2), np.int64)
+    q = o_pairs.shape[0]
+    length = _rows(count)
+    wide = ns + n
+    (x, v, dv, base, bend, other, th, tv, eh, ev, blocks, wh, wv, cg, block_inv, o_axis) = _carve(
+        [(3, length)] * 6 + [(3, wide)] * 4 + [(4, wide), (3, wide), (3, wide),
+                                               (4, 3, length), (9, length), (q, 3)])
+    mass = model.mass.copy() if model is not None else np.zeros(0)
+
+    def thread_array(values):
+        return values[others].copy() if model is not None else np.zeros(0)
+
+    return Grid(
+        ns=ns, n=n, count=count, h_rest=h_rest, h_k=h_k, h_c=h_c, v_rest=v_rest, v_k=v_k,
+        v_c=v_c, o_pairs=o_pairs, o_rest=thread_array(model.rest_length if model else None),
+        o_k=thread_array(model.axial_stiffness if model else None),
+        o_c=thread_array(model.axial_damping if model else None), mass=mass,
+        inv_mass=1.0 / mass, x=x, v=v, dv=dv, base=base, bend=bend, other=other, th=th, tv=tv,
+        eh=eh, ev=ev, blocks=blocks, wh=wh, wv=wv, cg=cg, block_inv=block_inv,
+        o_tension=np.zeros(q), o_along=np.zeros(q), o_across=np.zeros(q), o_axis=o_axis)
+
+
+def views(grid: Grid) -> GridViews:
+    """(N, 3) views of the grid's rows (see :class:`GridViews`)."""
+    count = grid.count
+    return GridViews(*(a[:, :count].T for a in (grid.x, grid.v, grid.dv, grid.bend,
+                                                grid.other)))
+
+
+def load(grid: Grid, position, velocity, base) -> None:
+    """Copy a state's positions [m] and velocities [m/s] and the constant forces ``base``
+    [N], each (N, 3), into the grid's rows."""
+    count = grid.count
+    grid.x[:, :count] = position.T
+    grid.v[:, :count] = velocity.T
+    grid.base[:, :count] = base.T
+
+
+def store(grid: Grid, position, velocity) -> None:
+    """Copy the grid's positions [m] and velocities [m/s] back into (N, 3) arrays."""
+    count = grid.count
+    position[:] = grid.x[:, :count].T
+    velocity[:] = grid.v[:, :count].T
+
+
+U = nb.uint64
+"""Indices are unsigned in the kernels: numba then skips the negative-index wraparound, which
+would turn every shifted load into a gather, and creates no array views (each view costs an
+atomic reference count increment and decrement)."""
+ONE = U(1)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _tension_stencil(x, v, off, rest, k, c, tension_e, count, ns):
+    """Eq. 3 for threads t < ``count`` from node t to node t + ``off``: T e [N] into
+    column Ns + t of ``tension_e`` (3, Ns + Ns^2); x [m] and v [m/s] are (3, L) rows."""
+    for t in range(count):
+        j = t + off
+        tension, ex, ey, ez, _ = tension_law(
+            x[0, j] - x[0, t], x[1, j] - x[1, t], x[2, j] - x[2, t], v[0, j] - v[0, t],
+            v[1, j] - v[1, t], v[2, j] - v[2, t], rest[t], k[t], c[t], False)
+        on = tension != 0.0
+        tension_e[0, t + ns] = tension * ex if on else 0.0
+        tension_e[1, t + ns] = tension * ey if on else 0.0
+        tension_e[2, t + ns] = tension * ez if on else 0.0
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _linearize_stencil(x, v, off, rest, k, c, tension_e, axis, blocks, row, dt, count, ns):
+    """:func:`_tension_stencil`, plus each thread's e into ``axis`` and its implicit block's
+    along and across [kg] into blocks[row], blocks[row + 1] (see
+    :func:`~bulletnet.forces.axial.axial_linearization`)."""
+    for t in range(count):
+        j = t + off
+        tension, ex, ey, ez, length = tension_law(
+            x[0, j] - x[0, t], x[1, j] - x[1, t], x[2, j] - x[2, t], v[0, j] - v[0, t],
+            v[1, j] - v[1, t], v[2, j] - v[2, t], rest[t], k[t], c[t], False)
+        on = tension != 0.0
+        col = t + ns
+        tension_e[0, col] = tension * ex if on else 0.0
+        tension_e[1, col] = tension * ey if on else 0.0
+        tension_e[2, col] = tension * ez if on else 0.0
+        axis[0, col], axis[1, col], axis[2, col] = ex, ey, ez
+        blocks[row, col] = dt * c[t] + dt * dt * k[t] if on else 0.0
+        blocks[row + ONE, col] = (dt * dt * k[t] * max(length - rest[t], 0.0) / length
+                                  if on else 0.0)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _other_threads(grid, views, dt, linearize):
+    """The other threads' forces [N] into ``other`` (pair-list kernels on the views); with
+    ``linearize`` also their directions and implicit blocks."""
+    other, pairs = views.other, grid.o_pairs
+    for q in range(pairs.shape[0]):
+        for end in range(2):
+            for a in range(3):
+                other[pairs[q, end], a] = 0.0
+    if linearize:
+        axial_linearization(views.position, views.velocity, pairs, grid.o_rest, grid.o_k,
+                            grid.o_c, False, dt, other, grid.o_tension, grid.o_along,
+                            grid.o_across, grid.o_axis)
+    else:
+        axial_forces(views.position, views.velocity, pairs, grid.o_rest, grid.o_k, grid.o_c,
+                     False, other, grid.o_tension)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def symplectic_step(grid, views, dt, bending_scale):
+    """One symplectic Euler step of every node: thread forces, then dv = dt F / m with
+    F = base + bending_scale bend + threads, v <- v + dv, x <- x + dt v, in one pass over the
+    rows."""
+    ns, n, count = U(grid.ns), U(grid.n), U(grid.count)
+    x, v, dv, inv_mass = grid.x, grid.v, grid.dv, grid.inv_mass
+    base, bend, other, th, tv = grid.base, grid.bend, grid.other, grid.th, grid.tv
+    _tension_stencil(x, v, ONE, grid.h_rest, grid.h_k, grid.h_c, th, n - ONE, ns)
+    _tension_stencil(x, v, ns, grid.v_rest, grid.v_k, grid.v_c, tv, n - ns, ns)
+    _other_threads(grid, views, dt, False)
+    # two passes, each writing one or two rows: LLVM then proves the rows apart with a few
+    # runtime checks and vectorizes both (one pass writing three rows it does not)
+    for a in range(U(3)):
+        for i in range(n):
+            f = ((((base[a, i] + bending_scale * bend[a, i] - tv[a, i]) - th[a, i + ns - ONE])
+                  + th[a, i + ns]) + tv[a, i + ns]) + other[a, i]
+            dv[a, i] = dt * inv_mass[i] * f
+        for i in range(n, count):
+            dv[a, i] = dt * inv_mass[i] * (base[a, i] + bending_scale * bend[a, i] + other[a, i])
+    _move(x, v, dv, dt, count)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _move(x, v, dv, dt, count):
+    """v <- v + dv, x <- x + dt v for the first ``count`` columns."""
+    for a in range(U(3)):
+        for i in range(count):
+            v[a, i] += dv[a, i]
+            x[a, i] += dt * v[a, i]
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _block_stencil(rows, off, k, scale, blocks, row, axis, products, count, ns):
+    """Each thread's (t < ``count``, node t to node t + ``off``)
+    :func:`~bulletnet.forces.axial.block_product` of rows_t - rows_(t + off), with across =
+    blocks[row + 1] and along = blocks[row] or, where ``scale`` > 0, scale k [kg] (the
+    right-hand side's stiffness part), into column Ns + t of ``products``; zero for a slack
+    thread (blocks[row] 0)."""
+    for t in range(count):
+        j, col = t + off, t + ns
+        along = blocks[row, col]
+        w0, w1, w2 = block_product(rows[0, t] - rows[0, j], rows[1, t] - rows[1, j],
+                                   rows[2, t] - rows[2, j],
+                                   scale * k[t] if scale > 0.0 else along,
+                                   blocks[row + ONE, col], axis[0, col], axis[1, col],
+                                   axis[2, col])
+        on = along != 0.0
+        products[0, col] = w0 if on else 0.0
+        products[1, col] = w1 if on else 0.0
+        products[2, col] = w2 if on else 0.0
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _block_products(grid, rows, scale):
+    """Every grid thread's block times its nodes' difference of ``rows`` (3, L), into wh and
+    wv: the system's blocks (``scale`` 0) or, for the right-hand side, the blocks with
+    along = scale k (scale dt^2 [s^2])."""
+    ns, n, blocks = U(grid.ns), U(grid.n), grid.blocks
+    _block_stencil(rows, ONE, grid.h_k, scale, blocks, U(0), grid.eh, grid.wh, n - ONE, ns)
+    _block_stencil(rows, ns, grid.v_k, scale, blocks, U(2), grid.ev, grid.wv, n - ns, ns)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _apply(grid, rows, out):
+    """out = M rows + the threads' blocks applied to rows (the implicit system's product;
+    rows, out (3, L)), in the pair-list kernels' order."""
+    ns, n, count, mass = U(grid.ns), U(grid.n), U(grid.count), grid.mass
+    wh, wv = grid.wh, grid.wv
+    _block_products(grid, rows, 0.0)
+    for a in range(U(3)):
+        for i in range(n):
+            out[a, i] = (((mass[i] * rows[a, i] - wv[a, i]) - wh[a, i + ns - ONE])
+                         + wh[a, i + ns]) + wv[a, i + ns]
+        for i in range(n, count):
+            out[a, i] = mass[i] * rows[a, i]
+    add_thread_blocks(rows[:, :count].T, grid.o_pairs, grid.o_along, grid.o_across,
+                      grid.o_axis, out[:, :count].T)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _block_jacobi(grid):
+    """Each node's 3 x 3 diagonal block of the implicit system, inverted, into block_inv."""
+    ns, n, count, mass, inv = grid.ns, grid.n, grid.count, grid.mass, grid.block_inv
+    blocks, eh, ev = grid.blocks, grid.eh, grid.ev
+    for i in range(count):
+        m = (mass[i], 0.0, 0.0, 0.0, mass[i], 0.0, 0.0, 0.0, mass[i])
+        if i < n:  # v(i - Ns), h(i - 1), h(i), v(i): the pair-list order
+            for col, row in ((i, 2), (ns + i - 1, 0), (ns + i, 0), (ns + i, 2)):
+                e = ev if row == 2 else eh
+                if blocks[row, col] != 0.0:
+                    m = add_block(m, blocks[row, col], blocks[row + 1, col], e[0, col],
+                                  e[1, col], e[2, col])
+        for a in range(9):
+            inv[a, i] = m[a]
+    pairs, along, across, axis = grid.o_pairs, grid.o_along, grid.o_across, grid.o_axis
+    for q in range(pairs.shape[0]):
+        if along[q] == 0.0 and across[q] == 0.0:
+            continue
+        for node in (pairs[q, 0], pairs[q, 1]):
+            m = add_block((inv[0, node], inv[1, node], inv[2, node], inv[3, node], inv[4, node],
+                           inv[5, node], inv[6, node], inv[7, node], inv[8, node]), along[q],
+                          across[q], axis[q, 0], axis[q, 1], axis[q, 2])
+            for a in range(9):
+                inv[a, node] = m[a]
+    for i in range(count):
+        m = invert3((inv[0, i], inv[1, i], inv[2, i], inv[3, i], inv[4, i], inv[5, i],
+                     inv[6, i], inv[7, i], inv[8, i]))
+        for a in range(9):
+            inv[a, i] = m[a]
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _dot(a, b, count):
+    """sum_i a_i . b_i over the first ``count`` columns of (3, L) rows, node by node (the
+    pair-list kernels' order)."""
+    s = 0.0
+    for i in range(count):
+        s += a[0, i] * b[0, i] + a[1, i] * b[1, i] + a[2, i] * b[2, i]
+    return s
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _precondition(inv, r, z, count):
+    """z = the inverse diagonal blocks times r, node by node."""
+    for a in range(U(3)):
+        for i in range(count):
+            z[a, i] = inv[U(3) * a, i] * r[0, i] + inv[U(3) * a + ONE, i] * r[1, i] \
+                + inv[U(3) * a + U(2), i] * r[2, i]
+
+
+@nb.njit(cache=True, error_model="numpy")
+def implicit_step(grid, views, dt, tol, iterations):
+    """One linearly implicit Euler step (:func:`bulletnet.integrators.implicit_increment`,
+    the same arithmetic in the same order) on the rows: dv by preconditioned CG from its
+    last value, v <- v + dv, x <- x + dt v. base and bend hold the non-axial forces [N];
+    ``iterations`` (1,) counts CG iterations."""
+    ns, n, count, mass = U(grid.ns), U(grid.n), U(grid.count), grid.mass
+    x, v, dv, inv, blocks = grid.x, grid.v, grid.dv, grid.block_inv, grid.blocks
+    base, bend, other, th, tv = grid.base, grid.bend, grid.other, grid.th, grid.tv
+    r, z, d, ad = grid.cg[0], grid.cg[1], grid.cg[2], grid.cg[3]
+    _linearize_stencil(x, v, ONE, grid.h_rest, grid.h_k, grid.h_c, th, grid.eh, blocks, U(0),
+                       dt, n - ONE, ns)
+    _linearize_stencil(x, v, ns, grid.v_rest, grid.v_k, grid.v_c, tv, grid.ev, blocks, U(2),
+                       dt, n - ns, ns)
+    _other_threads(grid, views, dt, True)
+    # right-hand side dt F - dt^2 K v, in r
+    _block_products(grid, v, dt * dt)
+    wh, wv = grid.wh, grid.wv
+    for a in range(U(3)):
+        for i in range(n):
+            f = ((((base[a, i] + bend[a, i] - tv[a, i]) - th[a, i + ns - ONE]) + th[a, i + ns])
+                 + tv[a, i + ns]) + other[a, i]
+            r[a, i] = (((dt * f + wv[a, i]) + wh[a, i + ns - ONE]) - wh[a, i + ns]) \
+                - wv[a, i + ns]
+        for i in range(n, count):
+            r[a, i] = dt * (base[a, i] + bend[a, i] + other[a, i])
+    add_thread_rhs(v[:, :count].T, grid.o_pairs, grid.o_k, grid.o_along, grid.o_across,
+                   grid.o_axis, dt, r[:, :count].T)
+    momentum = np.zeros(3)
+    for a in range(U(3)):
+        for i in range(count):
+            momentum[a] += r[a, i]
+    rhs_norm = np.sqrt(_dot(r, r, count))
+    if rhs_norm != 0.0:
+        _block_jacobi(grid)
+        _apply(grid, dv, ad)  # r <- rhs - A dv (warm start)
+        for a in range(U(3)):
+            for i in range(count):
+                r[a, i] -= ad[a, i]
+        _precondition(inv, r, z, count)
+        for a in range(U(3)):
+            for i in range(count):
+                d[a, i] = z[a, i]
+        rz = _dot(r, z, count)
+        rr = _dot(r, r, count)
+        for _ in range(4 * grid.count):
+            if np.sqrt(rr) <= tol * rhs_norm:
+                break
+            _apply(grid, d, ad)
+            alpha = rz / _dot(d, ad, count)
+            for a in range(U(3)):
+                for i in range(count):
+                    dv[a, i] += alpha * d[a, i]
+                    r[a, i] -= alpha * ad[a, i]
+            _precondition(inv, r, z, count)
+            rz_new = _dot(r, z, count)
+            rr = _dot(r, r, count)
+            beta = rz_new / rz
+            rz = rz_new
+            for a in range(U(3)):
+                for i in range(count):
+                    d[a, i] = z[a, i] + beta * d[a, i]
+            iterations[0] += 1
+        # the momentum correction of the pair-list kernel (see there)
+        total_mass = 0.0
+        for i in range(count):
+            total_mass += mass[i]
+            for a in range(U(3)):
+                momentum[a] -= mass[i] * dv[a, i]
+        for a in range(U(3)):
+            for i in range(count):
+                dv[a, i] += momentum[a] / total_mass
+    else:
+        dv[:] = 0.0
+    _move(x, v, dv, dt, count)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def free_steps(grid, views, implicit, steps, dt, tol, iterations):
+    """``steps`` steps of symplectic Euler (or, with ``implicit``, implicit Euler) of a net
+    with no bending and no contact: the threads, gravity, loads and external forces only.
+    (One compiled loop around the step kernels: no per-step bookkeeping.)"""
+    for _ in range(steps):
+        if implicit:
+            implicit_step(grid, views, dt, tol, iterations)
+        else:
+            symplectic_step(grid, views, dt, 0.0)
