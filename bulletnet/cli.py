@@ -7,6 +7,7 @@ interrupted one."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import signal
@@ -16,6 +17,10 @@ import time
 from .errors import BulletnetError, ScenarioError
 
 SI_HELP = "all quantities in SI units; see `bulletnet params SCENE`"
+
+COMPILE_ESTIMATE_S = 25
+"""Wall time numba takes to compile the kernels of a run [s], measured on a 2-core machine
+(23-28 s for a deployment with or without bending, or a capture)."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -255,6 +260,7 @@ def _scene(args, extra: dict | None = None):
 def cmd_run(args) -> int:
     from pathlib import Path
 
+    from .kernel_cache import watch_compilation
     from .simulate import preflight, run
 
     flags = {"simulation.engine": args.engine, "simulation.integrator": args.integrator,
@@ -263,7 +269,7 @@ def cmd_run(args) -> int:
     scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
     out = Path(args.out or f"{scene.scene.name}.h5")
     preflight(scene, out, args.force)
-    progress = None if args.quiet else _ProgressBar()
+    progress = None if args.quiet else ProgressBar(COMPILE_ESTIMATE_S)
     print(f"bulletnet: {scene.scene.name}: engine {scene.simulation.engine}, bending "
           f"{'on' if scene.bending.enabled else 'off'}, "
           f"{scene.scene.duration:g} s simulated -> {out}", file=sys.stderr)
@@ -272,12 +278,18 @@ def cmd_run(args) -> int:
         from .profiling import Profile
 
         profile = Profile()
-    result = run(scene, out, progress=progress, force=args.force, profile=profile)
+    with contextlib.ExitStack() as stack:
+        if progress:
+            stack.enter_context(watch_compilation(progress.compile_started,
+                                                  progress.compile_ended))
+        result = run(scene, out, progress=progress, force=args.force, profile=profile)
     if progress:
         progress.done()
     steps = result.stats.get("steps", 0)
+    compiling = (f" (first run: {progress.compile_s:.1f} s compiling kernels)"
+                 if progress and progress.compile_s else "")
     print(f"{result.status}: {result.frames} frames, {steps} steps, "
-          f"{result.wall_time_s:.2f} s wall, real-time factor "
+          f"{result.wall_time_s:.2f} s wall{compiling}, real-time factor "
           f"{scene.scene.duration / max(result.wall_time_s, 1e-9):.3g} -> {result.path}")
     if profile is not None:
         from .profiling import report
@@ -286,31 +298,65 @@ def cmd_run(args) -> int:
     return 0
 
 
-class _ProgressBar:
-    """Simulated time, real-time factor and ETA on stderr, at most 4 updates a second."""
+class ProgressBar:
+    """Simulated time, real-time factor and ETA on stderr, at most 4 updates a second (one
+    every 10 s when stderr is not a terminal).
 
-    def __init__(self):
+    While numba compiles kernels its cache lacks (the first run after an install or a change
+    of the source), it says so, with ``compile_estimate`` [s], instead of an ETA; the rate and
+    the ETA count from the first frame after the compilation, once stepping has started."""
+
+    def __init__(self, compile_estimate: float, stream=None):
+        self.stream = stream or sys.stderr
+        self.compile_estimate = compile_estimate
         self.last = 0.0
-        self.tty = sys.stderr.isatty()
+        self.tty = self.stream.isatty()
         self.interval = 0.25 if self.tty else 10.0
+        self.origin: tuple[float, float] | None = None
+        """(simulated time [s], clock [s]) the rate counts from; None until a frame is seen."""
+        self.compiling = False
+        self.compile_s = 0.0
+        """Wall time spent compiling so far [s]."""
+
+    def compile_started(self) -> None:
+        if not self.compile_s and not self.compiling:  # said once a run
+            self._write(f"bulletnet: compiling kernels, first run after install, about "
+                        f"{self.compile_estimate:.0f} s", final=True)
+        self.compiling = True
+
+    def compile_ended(self, seconds: float) -> None:
+        self.compiling = False
+        self.compile_s += seconds
+        self.origin = None  # the rate restarts at the next frame
 
     def __call__(self, t: float, duration: float, wall: float) -> None:
-        now = time.monotonic()
+        now = time.perf_counter()
+        if self.origin is None:
+            # without a compilation, stepping started with the run (wall [s] ago) at t = 0
+            self.origin = (t, now) if self.compile_s else (0.0, now - wall)
         if now - self.last < self.interval and t < duration:
             return
         self.last = now
         frac = t / duration
-        rtf = t / wall if wall > 0 else float("inf")
-        eta = wall * (1 - frac) / frac if frac > 0 else float("nan")
-        bar = "#" * int(30 * frac)
-        line = (f"[{bar:<30}] t = {t:8.3f} / {duration:g} s  real-time x{rtf:8.3g}  "
-                f"ETA {eta:6.1f} s")
-        sys.stderr.write(("\r" + line) if self.tty else (line + "\n"))
-        sys.stderr.flush()
+        t0, clock0 = self.origin
+        if t > t0 and now > clock0:
+            rate = (t - t0) / (now - clock0)
+            speed = f"real-time x{rate:8.3g}  ETA {(duration - t) / rate:6.1f} s"
+        else:
+            speed = "real-time x       -  ETA      - s"
+        self._write(f"[{'#' * int(30 * frac):<30}] t = {t:8.3f} / {duration:g} s  {speed}")
+
+    def _write(self, line: str, final: bool = False) -> None:
+        if self.tty:
+            line = "\r\033[K" + line + ("\n" if final else "")
+        else:
+            line += "\n"
+        self.stream.write(line)
+        self.stream.flush()
 
     def done(self) -> None:
         if self.tty:
-            sys.stderr.write("\n")
+            self.stream.write("\n")
 
 
 def cmd_params(args) -> int:
