@@ -39,6 +39,19 @@ def _positive(text: str) -> float:
     return value
 
 
+def _add_scene(parser: argparse.ArgumentParser, bending: str = "bending on/off") -> None:
+    """The arguments every command that builds a scene takes: the scene, --bending, --set."""
+    from .scenario import scene_names
+
+    parser.add_argument("scene", help=f"scene name ({', '.join(scene_names())}) or path to a "
+                        ".toml")
+    parser.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None,
+                        help=f"{bending}; default: the scene's")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a scene key, e.g. --set net.nodes_per_side=6 (values in "
+                             "SI units, TOML syntax; repeatable)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
     from .scenario import ENGINES, INTEGRATORS
@@ -49,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="simulate a scene and record it to HDF5")
-    run.add_argument("scene", help="scene name (deployment, capture, ...) or path to a .toml")
+    _add_scene(run, "oriented nodes with the bending springs of Sec. 3.2 on/off")
     run.add_argument("--engine", choices=ENGINES, help="fast (compiled), bullet (PyBullet "
                      "bodies) or reference (scipy DOP853); default: the scene's")
     run.add_argument("--integrator", choices=INTEGRATORS,
@@ -58,12 +71,6 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--duration", type=_positive, metavar="S", help="simulated time [s]")
     run.add_argument("--record-rate", type=_positive, metavar="HZ",
                      help="frames recorded per simulated second [Hz]")
-    run.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None,
-                     help="oriented nodes with the bending springs of Sec. 3.2 on/off; "
-                          "default: the scene's")
-    run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                     help="override a scene key, e.g. --set net.nodes_per_side=6 "
-                          "(values in SI units, TOML syntax)")
     run.add_argument("--out", metavar="FILE", help="recording to write [default: SCENE.h5]")
     run.add_argument("--force", action="store_true", help="overwrite an existing --out")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -72,24 +79,26 @@ def build_parser() -> argparse.ArgumentParser:
                           "recording, I/O) [s]")
 
     params = sub.add_parser("params", help="print the derived model (Tables 5-7)")
-    params.add_argument("scene")
-    params.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    _add_scene(params)
     params.add_argument("--json", action="store_true", help="machine-readable output")
 
     compare = sub.add_parser("compare", help="RMSE between two recordings (Eq. 14, Table 2)")
-    compare.add_argument("a", metavar="A.h5")
-    compare.add_argument("b", metavar="B.h5")
-    compare.add_argument("--json", action="store_true")
+    compare.add_argument("a", metavar="A.h5", help="a recording")
+    compare.add_argument("b", metavar="B.h5", help="the recording to compare it with, on the "
+                         "sample times both have")
+    compare.add_argument("--json", action="store_true", help="machine-readable output (RMSE in "
+                         "m and m/s)")
 
     metrics = sub.add_parser("metrics", help="mouth area, mouth diagonal, net height (Eq. 13); "
                              "with debris: first contact, nodes in contact, wrap, leave time, "
                              "debris spin")
-    metrics.add_argument("run", metavar="RUN.h5")
-    metrics.add_argument("--json", action="store_true")
+    metrics.add_argument("run", metavar="RUN.h5", help="a recording")
+    metrics.add_argument("--json", action="store_true", help="machine-readable output, every "
+                         "frame (keys carry their unit: _s, _m, _m2, _J, _deg_s)")
     metrics.add_argument("--every", type=_positive, default=0.1, metavar="S",
                          help="table row interval [s] (text output only)")
     plot = sub.add_parser("plot", help="the paper's deployment and capture figures as PNG")
-    plot.add_argument("a", metavar="A.h5")
+    plot.add_argument("a", metavar="A.h5", help="a recording")
     plot.add_argument("b", metavar="B.h5", nargs="?", help="a second run to overlay")
     plot.add_argument("--out", required=True, metavar="DIR", help="folder for the PNG files")
     plot.add_argument("--times", type=float, nargs="+", metavar="S",
@@ -122,7 +131,7 @@ DEFAULT_BENCH_DTS = (5e-7, 1e-6, 2e-6, 4e-6, 1e-5, 3e-5, 1e-4)
 def _add_bench(sub) -> None:
     bench = sub.add_parser("bench", help="speed against accuracy: a grid of (method, step) "
                            "runs against a converged reference; JSON and a PNG chart")
-    bench.add_argument("scene", help="scene name or path to a .toml")
+    _add_scene(bench)
     bench.add_argument("--methods", nargs="+", metavar="ENGINE:INTEGRATOR",
                        default=["fast:symplectic_euler", "fast:implicit_euler"],
                        help="methods to run, e.g. fast:implicit_euler bullet:symplectic_euler "
@@ -130,10 +139,6 @@ def _add_bench(sub) -> None:
     bench.add_argument("--dts", nargs="+", type=_positive, metavar="S",
                        default=list(DEFAULT_BENCH_DTS), help="time steps of the grid [s]")
     bench.add_argument("--duration", type=_positive, metavar="S", help="simulated time [s]")
-    bench.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None,
-                       help="bending on/off; default: the scene's")
-    bench.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                       help="override a scene key (SI units, TOML syntax)")
     bench.add_argument("--measures", nargs="+", default=["rmse"], metavar="NAME",
                        help="scores against the reference: rmse (Eq. 14, position [m] and "
                             "velocity [m/s]), mouth_area (mouth-area curve [m^2]); with "
@@ -156,14 +161,13 @@ def _add_bench(sub) -> None:
 def _add_stability(sub) -> None:
     stability = sub.add_parser("stability", help="largest stable step of each method, "
                                "bisected, beside the analytical limits")
-    stability.add_argument("scene", help="scene name or path to a .toml")
+    _add_scene(stability)
     stability.add_argument("--methods", nargs="+", metavar="ENGINE:INTEGRATOR",
-                           default=["fast:symplectic_euler", "fast:implicit_euler"])
+                           default=["fast:symplectic_euler", "fast:implicit_euler"],
+                           help="methods whose largest stable step is bisected")
     stability.add_argument("--horizon", type=_positive, metavar="S",
                            help="simulated time of each trial run [s] (default: the scene's "
                                 "duration)")
-    stability.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None)
-    stability.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     stability.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -171,8 +175,7 @@ def cmd_stability(args) -> int:
     from .bench import parse_method, stability_table
 
     methods = [parse_method(m) for m in args.methods]
-    flags = {"bending.enabled": args.bending}
-    scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
+    scene = _scene(args)
     log = None if args.json else print
     rows = stability_table(scene, methods, args.horizon or scene.scene.duration, log=log)
     if args.json:
@@ -235,8 +238,7 @@ def cmd_bench(args) -> int:
         raise ScenarioError(f"--front-by {args.front_by}: expected a key of the measures "
                             f"chosen: {', '.join(keys)}")
     methods = [parse_method(m) for m in args.methods]
-    flags = {"scene.duration": args.duration, "bending.enabled": args.bending}
-    scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
+    scene = _scene(args, {"scene.duration": args.duration})
     horizon = args.stability_horizon or scene.scene.duration if args.stability else None
     doc = bench(scene, methods, sorted(args.dts), Path(args.out),
                 [MEASURES[m][0] for m in args.measures], repeats=args.repeats,
@@ -249,11 +251,14 @@ def cmd_bench(args) -> int:
     return 0
 
 
-def _scene(args, extra: dict | None = None):
+def _scene(args, flags: dict | None = None):
+    """The scene of ``args`` with its --set overrides, then --bending and the command's other
+    ``flags`` (dotted scene keys; None: not given)."""
     from .scenario import load, parse_override
 
     overrides = dict(parse_override(item) for item in args.set)
-    overrides.update(extra or {})
+    flags = {"bending.enabled": args.bending, **(flags or {})}
+    overrides.update({k: v for k, v in flags.items() if v is not None})
     return load(args.scene, overrides)
 
 
@@ -265,8 +270,8 @@ def cmd_run(args) -> int:
 
     flags = {"simulation.engine": args.engine, "simulation.integrator": args.integrator,
              "simulation.dt": args.dt, "scene.duration": args.duration,
-             "simulation.record_rate": args.record_rate, "bending.enabled": args.bending}
-    scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
+             "simulation.record_rate": args.record_rate}
+    scene = _scene(args, flags)
     out = Path(args.out or f"{scene.scene.name}.h5")
     preflight(scene, out, args.force)
     progress = None if args.quiet else ProgressBar(COMPILE_ESTIMATE_S)
