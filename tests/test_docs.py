@@ -3,6 +3,9 @@ command is the one CI runs."""
 
 from __future__ import annotations
 
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 from bulletnet.cli_reference import REFRESH, reference
@@ -36,3 +39,39 @@ def test_readme_test_command_is_the_one_ci_runs():
                ".venv/bin/python -m pytest -q")
     assert command in readme
     assert command in (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+
+
+def test_api_worked_example_runs(tmp_path):
+    # the Python blocks of docs/api.md, run as one script, as a reader would paste them
+    text = (ROOT / "docs" / "api.md").read_text(encoding="utf-8")
+    blocks = [b.split("```")[0] for b in text.split("```python\n")[1:]]
+    assert blocks
+    proc = subprocess.run([sys.executable, "-c", "\n".join(blocks)], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("completed") and "refused:" in proc.stdout
+    assert "125 nodes, 224 threads" in proc.stdout
+
+
+def _anchors(markdown: str) -> set[str]:
+    """GitHub's anchors of a page's headings: lower case, punctuation dropped, spaces to -."""
+    return {re.sub(r"[^\w\- ]", "", line.lstrip("#").strip().lower()).replace(" ", "-")
+            for line in markdown.splitlines() if line.startswith("#")}
+
+
+def test_links_between_pages_resolve():
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    checked = 0
+    for page in pages:
+        text = page.read_text(encoding="utf-8")
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            if target.startswith(("http://", "https://")):
+                continue
+            path, _, anchor = target.partition("#")
+            resolved = (page.parent / path).resolve() if path else page
+            assert resolved.exists(), f"{page.name}: broken link {target}"
+            if anchor:
+                assert anchor in _anchors(resolved.read_text(encoding="utf-8")), \
+                    f"{page.name}: no heading for {target}"
+            checked += 1
+    assert checked > 20
