@@ -12,8 +12,8 @@ from conftest import small_scene
 from test_recording_cli import cli
 
 import bulletnet as bn
-from bulletnet.engines import make_engine
 from bulletnet.bench import is_stable
+from bulletnet.engines import make_engine
 from bulletnet.stability import Limits, analytical_limits, scene_limits
 
 
