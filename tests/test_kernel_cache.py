@@ -88,3 +88,27 @@ def test_progress_without_compilation_counts_from_the_start():
     bar(0.5, 1.0, 2.0)
     assert "compiling" not in stream.getvalue()
     assert "real-time x    0.25  ETA    2.0 s" in stream.getvalue()
+
+
+def test_bulletnet_run_reports_a_compilation(tmp_path, monkeypatch, capsys):
+    # Reference: numba's compile event. A kernel compiled during `bulletnet run` (a fresh one,
+    # so that the test does not have to empty the real cache) shows the notice on stderr.
+    import numba
+
+    import bulletnet.simulate
+    from bulletnet.cli import COMPILE_ESTIMATE_S, main
+
+    real_run = bulletnet.simulate.run
+
+    def run_compiling(*args, **kwargs):
+        numba.njit(lambda x: x + 1.0)(1.0)
+        return real_run(*args, **kwargs)
+
+    monkeypatch.setattr(bulletnet.simulate, "run", run_compiling)
+    out = tmp_path / "run.h5"
+    assert main(["run", "deployment", "--set", "net.nodes_per_side=4", "--duration", "0.01",
+                 "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    notice = f"compiling kernels, first run after install, about {COMPILE_ESTIMATE_S} s"
+    assert captured.err.count(notice) == 1
+    assert "s compiling kernels)" in captured.out
