@@ -321,13 +321,52 @@ def plot_bench(doc: dict, path: Path) -> Path:
     return path
 
 
+def is_stable(scenario: Scenario, dt: float, horizon: float) -> bool:
+    """Whether ``scenario`` runs ``horizon`` seconds at step ``dt`` [s] without the run's own
+    :class:`DivergenceError` (non-finite state or runaway node speed)."""
+    from .simulate import run
+
+    scene = scenario.with_overrides({"simulation.dt": dt, "scene.duration": horizon,
+                                     "simulation.record_rate": min(
+                                         scenario.simulation.record_rate, 1.0 / dt)})
+    try:
+        run(scene)
+    except DivergenceError:
+        return False
+    return True
+
+
+def largest_stable_step(scenario: Scenario, horizon: float, low: float, high: float,
+                        rel_tol: float = 0.02) -> dict:
+    """Bisect (geometrically) for the largest stable step [s] between ``low`` and ``high``.
+
+    Returns ``{"dt_stable_s", "dt_unstable_s", "runs"}``: the largest step found stable and the
+    smallest found unstable (``None`` if ``high`` itself is stable, or ``low`` is not), to
+    ``rel_tol`` of each other."""
+    runs = 0
+    if is_stable(scenario, high, horizon):
+        return {"dt_stable_s": high, "dt_unstable_s": None, "runs": 1}
+    runs += 1
+    if not is_stable(scenario, low, horizon):
+        return {"dt_stable_s": None, "dt_unstable_s": low, "runs": runs + 1}
+    runs += 1
+    while high / low > 1.0 + rel_tol:
+        mid = math.sqrt(low * high)
+        runs += 1
+        if is_stable(scenario, mid, horizon):
+            low = mid
+        else:
+            high = mid
+    return {"dt_stable_s": low, "dt_unstable_s": high, "runs": runs}
+
+
 def stability_table(scene: Scenario, methods: Sequence[Method], horizon: float,
                     rel_tol: float = 0.03, log=None) -> list[dict]:
     """Per fixed-step method: the analytical limits of the scene's net and the largest stable
     step found by bisection over ``horizon`` [s] (from half to 8 times the method's limit; a
     method without one from the explicit limit up to 100 times the stiffness limit), at most
     a tenth of the horizon. Steps in [s], rates in [1/s], frequencies in [rad/s]."""
-    from .stability import largest_stable_step, scene_limits
+    from .stability import scene_limits
 
     limits = scene_limits(scene)
     rows = []

@@ -7,6 +7,7 @@ interrupted one."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import signal
@@ -16,6 +17,10 @@ import time
 from .errors import BulletnetError, ScenarioError
 
 SI_HELP = "all quantities in SI units; see `bulletnet params SCENE`"
+
+COMPILE_ESTIMATE_S = 25
+"""Wall time numba takes to compile the kernels of a run [s], measured on a 2-core machine
+(23-28 s for a deployment with or without bending, or a capture)."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -34,6 +39,19 @@ def _positive(text: str) -> float:
     return value
 
 
+def _add_scene(parser: argparse.ArgumentParser, bending: str = "bending on/off") -> None:
+    """The arguments every command that builds a scene takes: the scene, --bending, --set."""
+    from .scenario import scene_names
+
+    parser.add_argument("scene", help=f"scene name ({', '.join(scene_names())}) or path to a "
+                        ".toml")
+    parser.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None,
+                        help=f"{bending}; default: the scene's")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a scene key, e.g. --set net.nodes_per_side=6 (values in "
+                             "SI units, TOML syntax; repeatable)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
     from .scenario import ENGINES, INTEGRATORS
@@ -44,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="simulate a scene and record it to HDF5")
-    run.add_argument("scene", help="scene name (deployment, capture, ...) or path to a .toml")
+    _add_scene(run, "oriented nodes with the bending springs of Sec. 3.2 on/off")
     run.add_argument("--engine", choices=ENGINES, help="fast (compiled), bullet (PyBullet "
                      "bodies) or reference (scipy DOP853); default: the scene's")
     run.add_argument("--integrator", choices=INTEGRATORS,
@@ -53,12 +71,6 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--duration", type=_positive, metavar="S", help="simulated time [s]")
     run.add_argument("--record-rate", type=_positive, metavar="HZ",
                      help="frames recorded per simulated second [Hz]")
-    run.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None,
-                     help="oriented nodes with the bending springs of Sec. 3.2 on/off; "
-                          "default: the scene's")
-    run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                     help="override a scene key, e.g. --set net.nodes_per_side=6 "
-                          "(values in SI units, TOML syntax)")
     run.add_argument("--out", metavar="FILE", help="recording to write [default: SCENE.h5]")
     run.add_argument("--force", action="store_true", help="overwrite an existing --out")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -67,24 +79,26 @@ def build_parser() -> argparse.ArgumentParser:
                           "recording, I/O) [s]")
 
     params = sub.add_parser("params", help="print the derived model (Tables 5-7)")
-    params.add_argument("scene")
-    params.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    _add_scene(params)
     params.add_argument("--json", action="store_true", help="machine-readable output")
 
     compare = sub.add_parser("compare", help="RMSE between two recordings (Eq. 14, Table 2)")
-    compare.add_argument("a", metavar="A.h5")
-    compare.add_argument("b", metavar="B.h5")
-    compare.add_argument("--json", action="store_true")
+    compare.add_argument("a", metavar="A.h5", help="a recording")
+    compare.add_argument("b", metavar="B.h5", help="the recording to compare it with, on the "
+                         "sample times both have")
+    compare.add_argument("--json", action="store_true", help="machine-readable output (RMSE in "
+                         "m and m/s)")
 
     metrics = sub.add_parser("metrics", help="mouth area, mouth diagonal, net height (Eq. 13); "
                              "with debris: first contact, nodes in contact, wrap, leave time, "
                              "debris spin")
-    metrics.add_argument("run", metavar="RUN.h5")
-    metrics.add_argument("--json", action="store_true")
+    metrics.add_argument("run", metavar="RUN.h5", help="a recording")
+    metrics.add_argument("--json", action="store_true", help="machine-readable output, every "
+                         "frame (keys carry their unit: _s, _m, _m2, _J, _deg_s)")
     metrics.add_argument("--every", type=_positive, default=0.1, metavar="S",
                          help="table row interval [s] (text output only)")
     plot = sub.add_parser("plot", help="the paper's deployment and capture figures as PNG")
-    plot.add_argument("a", metavar="A.h5")
+    plot.add_argument("a", metavar="A.h5", help="a recording")
     plot.add_argument("b", metavar="B.h5", nargs="?", help="a second run to overlay")
     plot.add_argument("--out", required=True, metavar="DIR", help="folder for the PNG files")
     plot.add_argument("--times", type=float, nargs="+", metavar="S",
@@ -117,7 +131,7 @@ DEFAULT_BENCH_DTS = (5e-7, 1e-6, 2e-6, 4e-6, 1e-5, 3e-5, 1e-4)
 def _add_bench(sub) -> None:
     bench = sub.add_parser("bench", help="speed against accuracy: a grid of (method, step) "
                            "runs against a converged reference; JSON and a PNG chart")
-    bench.add_argument("scene", help="scene name or path to a .toml")
+    _add_scene(bench)
     bench.add_argument("--methods", nargs="+", metavar="ENGINE:INTEGRATOR",
                        default=["fast:symplectic_euler", "fast:implicit_euler"],
                        help="methods to run, e.g. fast:implicit_euler bullet:symplectic_euler "
@@ -125,10 +139,6 @@ def _add_bench(sub) -> None:
     bench.add_argument("--dts", nargs="+", type=_positive, metavar="S",
                        default=list(DEFAULT_BENCH_DTS), help="time steps of the grid [s]")
     bench.add_argument("--duration", type=_positive, metavar="S", help="simulated time [s]")
-    bench.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None,
-                       help="bending on/off; default: the scene's")
-    bench.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                       help="override a scene key (SI units, TOML syntax)")
     bench.add_argument("--measures", nargs="+", default=["rmse"], metavar="NAME",
                        help="scores against the reference: rmse (Eq. 14, position [m] and "
                             "velocity [m/s]), mouth_area (mouth-area curve [m^2]); with "
@@ -151,14 +161,13 @@ def _add_bench(sub) -> None:
 def _add_stability(sub) -> None:
     stability = sub.add_parser("stability", help="largest stable step of each method, "
                                "bisected, beside the analytical limits")
-    stability.add_argument("scene", help="scene name or path to a .toml")
+    _add_scene(stability)
     stability.add_argument("--methods", nargs="+", metavar="ENGINE:INTEGRATOR",
-                           default=["fast:symplectic_euler", "fast:implicit_euler"])
+                           default=["fast:symplectic_euler", "fast:implicit_euler"],
+                           help="methods whose largest stable step is bisected")
     stability.add_argument("--horizon", type=_positive, metavar="S",
                            help="simulated time of each trial run [s] (default: the scene's "
                                 "duration)")
-    stability.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None)
-    stability.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     stability.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -166,8 +175,7 @@ def cmd_stability(args) -> int:
     from .bench import parse_method, stability_table
 
     methods = [parse_method(m) for m in args.methods]
-    flags = {"bending.enabled": args.bending}
-    scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
+    scene = _scene(args)
     log = None if args.json else print
     rows = stability_table(scene, methods, args.horizon or scene.scene.duration, log=log)
     if args.json:
@@ -230,8 +238,7 @@ def cmd_bench(args) -> int:
         raise ScenarioError(f"--front-by {args.front_by}: expected a key of the measures "
                             f"chosen: {', '.join(keys)}")
     methods = [parse_method(m) for m in args.methods]
-    flags = {"scene.duration": args.duration, "bending.enabled": args.bending}
-    scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
+    scene = _scene(args, {"scene.duration": args.duration})
     horizon = args.stability_horizon or scene.scene.duration if args.stability else None
     doc = bench(scene, methods, sorted(args.dts), Path(args.out),
                 [MEASURES[m][0] for m in args.measures], repeats=args.repeats,
@@ -244,26 +251,30 @@ def cmd_bench(args) -> int:
     return 0
 
 
-def _scene(args, extra: dict | None = None):
+def _scene(args, flags: dict | None = None):
+    """The scene of ``args`` with its --set overrides, then --bending and the command's other
+    ``flags`` (dotted scene keys; None: not given)."""
     from .scenario import load, parse_override
 
     overrides = dict(parse_override(item) for item in args.set)
-    overrides.update(extra or {})
+    flags = {"bending.enabled": args.bending, **(flags or {})}
+    overrides.update({k: v for k, v in flags.items() if v is not None})
     return load(args.scene, overrides)
 
 
 def cmd_run(args) -> int:
     from pathlib import Path
 
+    from .kernel_cache import watch_compilation
     from .simulate import preflight, run
 
     flags = {"simulation.engine": args.engine, "simulation.integrator": args.integrator,
              "simulation.dt": args.dt, "scene.duration": args.duration,
-             "simulation.record_rate": args.record_rate, "bending.enabled": args.bending}
-    scene = _scene(args, {k: v for k, v in flags.items() if v is not None})
+             "simulation.record_rate": args.record_rate}
+    scene = _scene(args, flags)
     out = Path(args.out or f"{scene.scene.name}.h5")
     preflight(scene, out, args.force)
-    progress = None if args.quiet else _ProgressBar()
+    progress = None if args.quiet else ProgressBar(COMPILE_ESTIMATE_S)
     print(f"bulletnet: {scene.scene.name}: engine {scene.simulation.engine}, bending "
           f"{'on' if scene.bending.enabled else 'off'}, "
           f"{scene.scene.duration:g} s simulated -> {out}", file=sys.stderr)
@@ -272,12 +283,18 @@ def cmd_run(args) -> int:
         from .profiling import Profile
 
         profile = Profile()
-    result = run(scene, out, progress=progress, force=args.force, profile=profile)
+    with contextlib.ExitStack() as stack:
+        if progress:
+            stack.enter_context(watch_compilation(progress.compile_started,
+                                                  progress.compile_ended))
+        result = run(scene, out, progress=progress, force=args.force, profile=profile)
     if progress:
         progress.done()
     steps = result.stats.get("steps", 0)
+    compiling = (f" (first run: {progress.compile_s:.1f} s compiling kernels)"
+                 if progress and progress.compile_s else "")
     print(f"{result.status}: {result.frames} frames, {steps} steps, "
-          f"{result.wall_time_s:.2f} s wall, real-time factor "
+          f"{result.wall_time_s:.2f} s wall{compiling}, real-time factor "
           f"{scene.scene.duration / max(result.wall_time_s, 1e-9):.3g} -> {result.path}")
     if profile is not None:
         from .profiling import report
@@ -286,31 +303,65 @@ def cmd_run(args) -> int:
     return 0
 
 
-class _ProgressBar:
-    """Simulated time, real-time factor and ETA on stderr, at most 4 updates a second."""
+class ProgressBar:
+    """Simulated time, real-time factor and ETA on stderr, at most 4 updates a second (one
+    every 10 s when stderr is not a terminal).
 
-    def __init__(self):
+    While numba compiles kernels its cache lacks (the first run after an install or a change
+    of the source), it says so, with ``compile_estimate`` [s], instead of an ETA; the rate and
+    the ETA count from the first frame after the compilation, once stepping has started."""
+
+    def __init__(self, compile_estimate: float, stream=None):
+        self.stream = stream or sys.stderr
+        self.compile_estimate = compile_estimate
         self.last = 0.0
-        self.tty = sys.stderr.isatty()
+        self.tty = self.stream.isatty()
         self.interval = 0.25 if self.tty else 10.0
+        self.origin: tuple[float, float] | None = None
+        """(simulated time [s], clock [s]) the rate counts from; None until a frame is seen."""
+        self.compiling = False
+        self.compile_s = 0.0
+        """Wall time spent compiling so far [s]."""
+
+    def compile_started(self) -> None:
+        if not self.compile_s and not self.compiling:  # said once a run
+            self._write(f"bulletnet: compiling kernels, first run after install, about "
+                        f"{self.compile_estimate:.0f} s", final=True)
+        self.compiling = True
+
+    def compile_ended(self, seconds: float) -> None:
+        self.compiling = False
+        self.compile_s += seconds
+        self.origin = None  # the rate restarts at the next frame
 
     def __call__(self, t: float, duration: float, wall: float) -> None:
-        now = time.monotonic()
+        now = time.perf_counter()
+        if self.origin is None:
+            # without a compilation, stepping started with the run (wall [s] ago) at t = 0
+            self.origin = (t, now) if self.compile_s else (0.0, now - wall)
         if now - self.last < self.interval and t < duration:
             return
         self.last = now
         frac = t / duration
-        rtf = t / wall if wall > 0 else float("inf")
-        eta = wall * (1 - frac) / frac if frac > 0 else float("nan")
-        bar = "#" * int(30 * frac)
-        line = (f"[{bar:<30}] t = {t:8.3f} / {duration:g} s  real-time x{rtf:8.3g}  "
-                f"ETA {eta:6.1f} s")
-        sys.stderr.write(("\r" + line) if self.tty else (line + "\n"))
-        sys.stderr.flush()
+        t0, clock0 = self.origin
+        if t > t0 and now > clock0:
+            rate = (t - t0) / (now - clock0)
+            speed = f"real-time x{rate:8.3g}  ETA {(duration - t) / rate:6.1f} s"
+        else:
+            speed = "real-time x       -  ETA      - s"
+        self._write(f"[{'#' * int(30 * frac):<30}] t = {t:8.3f} / {duration:g} s  {speed}")
+
+    def _write(self, line: str, final: bool = False) -> None:
+        if self.tty:
+            line = "\r\033[K" + line + ("\n" if final else "")
+        else:
+            line += "\n"
+        self.stream.write(line)
+        self.stream.flush()
 
     def done(self) -> None:
         if self.tty:
-            sys.stderr.write("\n")
+            self.stream.write("\n")
 
 
 def cmd_params(args) -> int:

@@ -11,9 +11,12 @@ any kernel).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import sys
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
@@ -40,6 +43,33 @@ def configure() -> None:
         from numba.core import config
 
         config.reload_config()
+
+
+@contextlib.contextmanager
+def watch_compilation(on_start: Callable[[], None],
+                      on_end: Callable[[float], None]) -> Iterator[None]:
+    """Inside the block, call ``on_start()`` when numba starts compiling a kernel its cache
+    lacks and ``on_end(seconds)`` when that compilation (with the kernels it compiles in
+    turn) ends, with its wall time [s]. Kernels loaded from the cache call neither."""
+    from numba.core import event
+
+    class _Listener(event.Listener):
+        depth = 0
+        start = 0.0
+
+        def on_start(self, ev):
+            self.depth += 1
+            if self.depth == 1:
+                self.start = time.perf_counter()
+                on_start()
+
+        def on_end(self, ev):
+            self.depth -= 1
+            if self.depth == 0:
+                on_end(time.perf_counter() - self.start)
+
+    with event.install_listener("numba:compile", _Listener()):
+        yield
 
 
 configure()

@@ -418,11 +418,27 @@ def resolve_path(name_or_path: str) -> Path:
             raise ScenarioError(f"{name_or_path}: no such scene file")
         return p
     named = SCENARIO_DIR / f"{name_or_path}.toml"
+    if named.is_file() and _is_sweep(named):
+        raise ScenarioError(f"{name_or_path}: a sweep file, not a scene; run it with "
+                            f"`bulletnet sweep {named}`")
     if named.is_file():
         return named
-    known = sorted(q.stem for q in SCENARIO_DIR.glob("*.toml"))
-    raise ScenarioError(
-        f"{name_or_path}: no such scene (named scenes: {', '.join(known) or 'none'})")
+    raise ScenarioError(f"{name_or_path}: no such scene (named scenes: "
+                        f"{', '.join(scene_names()) or 'none'})")
+
+
+def _is_sweep(path: Path) -> bool:
+    """Whether a .toml is a sweep file (its ``scene`` names the base scene) rather than a
+    scene (whose ``scene`` is a table)."""
+    try:
+        return isinstance(tomllib.loads(path.read_text(encoding="utf-8")).get("scene"), str)
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return False
+
+
+def scene_names() -> list[str]:
+    """Names of the shipped scenes: ``scenarios/*.toml`` without the sweep files."""
+    return sorted(q.stem for q in SCENARIO_DIR.glob("*.toml") if not _is_sweep(q))
 
 
 def loads(text: str, source: str = "<string>") -> Scenario:

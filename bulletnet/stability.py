@@ -1,4 +1,5 @@
-"""Stability limits of the integrators: analytical, from the assembled threads, and measured.
+"""Stability limits of the integrators, analytical, from the assembled threads (the measured
+limits, by bisection over runs, are :func:`bulletnet.bench.largest_stable_step`).
 
 Linearised about a configuration with every thread taut, the net obeys
 ``M a = -K x - C v`` with ``K = sum_p k_p B_p``, ``C = sum_p c_p B_p`` and ``B_p`` thread p's
@@ -36,7 +37,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import DivergenceError
 from .model import NetModel
 from .scenario import Scenario
 
@@ -165,42 +165,3 @@ def scene_limits(scenario: Scenario) -> Limits:
     model = build_model(scenario)
     return analytical_limits(model, initial_state(scenario, model).position,
                              scenario.bending.enabled)
-
-
-def is_stable(scenario: Scenario, dt: float, horizon: float) -> bool:
-    """Whether ``scenario`` runs ``horizon`` seconds at step ``dt`` [s] without the run's own
-    :class:`DivergenceError` (non-finite state or runaway node speed)."""
-    from .simulate import run
-
-    scene = scenario.with_overrides({"simulation.dt": dt, "scene.duration": horizon,
-                                     "simulation.record_rate": min(
-                                         scenario.simulation.record_rate, 1.0 / dt)})
-    try:
-        run(scene)
-    except DivergenceError:
-        return False
-    return True
-
-
-def largest_stable_step(scenario: Scenario, horizon: float, low: float, high: float,
-                        rel_tol: float = 0.02) -> dict:
-    """Bisect (geometrically) for the largest stable step [s] between ``low`` and ``high``.
-
-    Returns ``{"dt_stable_s", "dt_unstable_s", "runs"}``: the largest step found stable and the
-    smallest found unstable (``None`` if ``high`` itself is stable, or ``low`` is not), to
-    ``rel_tol`` of each other."""
-    runs = 0
-    if is_stable(scenario, high, horizon):
-        return {"dt_stable_s": high, "dt_unstable_s": None, "runs": 1}
-    runs += 1
-    if not is_stable(scenario, low, horizon):
-        return {"dt_stable_s": None, "dt_unstable_s": low, "runs": runs + 1}
-    runs += 1
-    while high / low > 1.0 + rel_tol:
-        mid = math.sqrt(low * high)
-        runs += 1
-        if is_stable(scenario, mid, horizon):
-            low = mid
-        else:
-            high = mid
-    return {"dt_stable_s": low, "dt_unstable_s": high, "runs": runs}

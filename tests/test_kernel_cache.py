@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import io
 import os
 import shutil
+import time
 
 import pytest
 
@@ -30,3 +32,83 @@ def test_cache_folder_is_keyed_on_every_source_file(tmp_path):
     kernel = copy / "forces" / "contact.py"
     kernel.write_text(kernel.read_text() + "\n# edited\n")
     assert kernel_cache.source_digest(copy) != before
+
+
+def test_compilation_is_watched_and_cache_hits_are_not():
+    # Reference: numba's own event: compiling a new kernel (one that calls another, itself
+    # compiled in turn) is one outer compilation; calling it again compiles nothing.
+    import numba
+
+    @numba.njit
+    def inner(x):
+        return 2.0 * x
+
+    @numba.njit
+    def outer(x):
+        return inner(x) + 1.0
+
+    events = []
+    with kernel_cache.watch_compilation(lambda: events.append("start"), events.append):
+        assert outer(1.0) == 3.0
+        assert outer(2.0) == 5.0
+    assert events[0] == "start" and len(events) == 2 and events[1] > 0
+
+
+class _Stream(io.StringIO):
+    def isatty(self):
+        return False
+
+
+def test_progress_says_compiling_instead_of_an_eta():
+    # Reference: the definition: while kernels compile the display names the compilation and
+    # its estimate; the rate and ETA count only frames stepped after it.
+    from bulletnet.cli import ProgressBar
+
+    stream = _Stream()
+    bar = ProgressBar(25, stream)
+    bar.interval = 0.0
+    bar.compile_started()
+    bar.compile_started()  # a second kernel of the same compilation: said once
+    bar.compile_ended(20.0)
+    bar(0.1, 1.0, 20.0)  # the frame that included the compilation: no rate yet
+    time.sleep(0.05)
+    bar(0.2, 1.0, 20.05)
+    lines = stream.getvalue().splitlines()
+    assert lines[0] == "bulletnet: compiling kernels, first run after install, about 25 s"
+    assert len(lines) == 3 and "ETA      - s" in lines[1]
+    eta = float(lines[2].split("ETA")[1].split()[0])
+    assert eta < 8  # 0.8 s to go at 0.1 s per ~0.05 s; counted from the start, 80 s
+
+
+def test_progress_without_compilation_counts_from_the_start():
+    from bulletnet.cli import ProgressBar
+
+    stream = _Stream()
+    bar = ProgressBar(25, stream)
+    bar(0.5, 1.0, 2.0)
+    assert "compiling" not in stream.getvalue()
+    assert "real-time x    0.25  ETA    2.0 s" in stream.getvalue()
+
+
+def test_bulletnet_run_reports_a_compilation(tmp_path, monkeypatch, capsys):
+    # Reference: numba's compile event. A kernel compiled during `bulletnet run` (a fresh one,
+    # so that the test does not have to empty the real cache) shows the notice on stderr.
+    import numba
+
+    import bulletnet.simulate
+    from bulletnet.cli import COMPILE_ESTIMATE_S, main
+
+    real_run = bulletnet.simulate.run
+
+    def run_compiling(*args, **kwargs):
+        numba.njit(lambda x: x + 1.0)(1.0)
+        return real_run(*args, **kwargs)
+
+    monkeypatch.setattr(bulletnet.simulate, "run", run_compiling)
+    out = tmp_path / "run.h5"
+    assert main(["run", "deployment", "--set", "net.nodes_per_side=4", "--duration", "0.01",
+                 "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    notice = f"compiling kernels, first run after install, about {COMPILE_ESTIMATE_S} s"
+    assert captured.err.count(notice) == 1
+    assert "s compiling kernels)" in captured.out

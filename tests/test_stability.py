@@ -12,8 +12,9 @@ from conftest import small_scene
 from test_recording_cli import cli
 
 import bulletnet as bn
+from bulletnet.bench import is_stable
 from bulletnet.engines import make_engine
-from bulletnet.stability import Limits, analytical_limits, is_stable, scene_limits
+from bulletnet.stability import Limits, analytical_limits, scene_limits
 
 
 def test_two_mass_thread_limits_match_closed_form():

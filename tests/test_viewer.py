@@ -197,7 +197,7 @@ def test_view_bad_input_is_one_line(runs, tmp_path, capsys):
              ([str(broken), "--html", str(tmp_path / "b.html")], "not a triangle mesh"),
              ([str(no_pose)], "damaged capture groups"),
              ([str(runs["plain"]), "--html", str(existing)], "--force"),
-             ([str(runs["plain"]), "--html", str(tmp_path / "no" / "x.html")], "no such folder")]
+             ([str(runs["plain"]), "--html", str(existing / "x.html")], "cannot create")]
     for args, message in cases:
         code, _, err = cli(capsys, *args)
         assert code == 2, (args, err)
@@ -205,8 +205,9 @@ def test_view_bad_input_is_one_line(runs, tmp_path, capsys):
 
 
 def test_html_export_and_index(runs, tmp_path, capsys):
-    # reference: the export's frame count is the replay's, and the index lists each replay
-    out = tmp_path / "capture.html"
+    # reference: the export's frame count is the replay's, and the index lists each replay;
+    # the folder is created
+    out = tmp_path / "replays" / "capture.html"
     code, printed, err = cli(capsys, runs["capture"], runs["bending"], "--html", out,
                              "--every", "2")
     assert code == 0 and printed.strip() == str(out), err
@@ -214,6 +215,6 @@ def test_html_export_and_index(runs, tmp_path, capsys):
     replay = load_replay([runs["capture"], runs["bending"]], every=2)
     assert "__VISER_EMBED_DATA__" in page and "bulletnet-panel" in page
     assert f'&quot;frames&quot;: {replay.time.size}' in page
-    assert cli(capsys, runs["plain"], "--html", tmp_path / "plain.html")[0] == 0
-    index = (tmp_path / "index.html").read_text()
+    assert cli(capsys, runs["plain"], "--html", out.parent / "plain.html")[0] == 0
+    index = (out.parent / "index.html").read_text()
     assert 'href="capture.html"' in index and 'href="plain.html"' in index

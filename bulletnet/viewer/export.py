@@ -12,10 +12,9 @@ from html import escape, unescape
 from pathlib import Path
 
 from ..errors import ScenarioError
-from . import viser_server
 from .panel import Panel
 from .replay import Replay
-from .scene import build_scene
+from .scene import build_scene, viser_server
 
 WEB = Path(__file__).resolve().parents[2] / "web"
 """What the HTML export adds to viser's client: the panel's script and style, the index."""
@@ -56,8 +55,10 @@ def export_html(replay: Replay, out: str | Path, snapshots: list[float],
                              "choose another name")
     if out.exists() and not force:
         raise ScenarioError(f"{out}: exists; pass --force to overwrite it")
-    if not out.parent.is_dir():
-        raise ScenarioError(f"{out.parent}: no such folder")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ScenarioError(f"{out.parent}: cannot create the folder: {exc.strerror}") from None
     summary = {"recordings": [t.label for t in replay.tracks],
                "duration_s": round(float(replay.time[-1] - replay.time[0]), 6),
                "frames": int(replay.time.size), "written": time.strftime("%Y-%m-%d %H:%M")}

@@ -7,14 +7,37 @@ set of nodes in contact changes.
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 import numpy as np
 
+from ..errors import BulletnetError
 from .replay import Replay, Track, node_colours, thread_colours
 
 TRAIL_FRAMES = 60
 """Length of the corner masses' trails, in frames of the replay [-]."""
 THREAD_WIDTH = 2.0
 """Thread line width on screen [px]."""
+
+
+
+@contextlib.contextmanager
+def viser_server(port: int = 0):
+    """A viser server on localhost ``port`` (the next free one if taken, any if 0), stopped on
+    exit; viser is imported here, on first use, and its banners are kept off stdout."""
+    try:
+        import viser
+    except ImportError:
+        raise BulletnetError(
+            "the browser replay needs viser: pip install 'bulletnet[view]'") from None
+    with contextlib.redirect_stdout(io.StringIO()):
+        server = viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
+    try:
+        yield server
+    finally:
+        with contextlib.redirect_stdout(io.StringIO()):
+            server.stop()
 
 
 def _sphere():

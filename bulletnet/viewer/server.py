@@ -6,10 +6,9 @@ from __future__ import annotations
 import threading
 import time
 
-from . import viser_server
 from .panel import Panel
 from .replay import SLACK, Replay
-from .scene import build_scene
+from .scene import build_scene, viser_server
 
 SPEEDS = ("0.1", "0.25", "0.5", "1", "2", "4")
 """Playback speeds offered [simulated s per wall s]."""
