@@ -287,16 +287,23 @@ def _other_threads(grid, views, dt, linearize):
 
 
 @nb.njit(cache=True, error_model="numpy")
+def thread_forces(grid, views):
+    """T e of every grid thread into th and tv, the other threads' forces [N] into other."""
+    ns, n, x, v = U(grid.ns), U(grid.n), grid.x, grid.v
+    _tension_stencil(x, v, ONE, grid.h_rest, grid.h_k, grid.h_c, grid.th, n - ONE, ns)
+    _tension_stencil(x, v, ns, grid.v_rest, grid.v_k, grid.v_c, grid.tv, n - ns, ns)
+    _other_threads(grid, views, 0.0, False)
+
+
+@nb.njit(cache=True, error_model="numpy")
 def symplectic_step(grid, views, dt, bending_scale):
-    """One symplectic Euler step of every node: thread forces, then dv = dt F / m with
+    """One symplectic Euler step of every node: :func:`thread_forces`, then dv = dt F / m with
     F = base + bending_scale bend + threads, v <- v + dv, x <- x + dt v, in one pass over the
     rows."""
     ns, n, count = U(grid.ns), U(grid.n), U(grid.count)
     x, v, dv, inv_mass = grid.x, grid.v, grid.dv, grid.inv_mass
     base, bend, other, th, tv = grid.base, grid.bend, grid.other, grid.th, grid.tv
-    _tension_stencil(x, v, ONE, grid.h_rest, grid.h_k, grid.h_c, th, n - ONE, ns)
-    _tension_stencil(x, v, ns, grid.v_rest, grid.v_k, grid.v_c, tv, n - ns, ns)
-    _other_threads(grid, views, dt, False)
+    thread_forces(grid, views)
     # two passes, each writing one or two rows: LLVM then proves the rows apart with a few
     # runtime checks and vectorizes both (one pass writing three rows it does not)
     for a in range(U(3)):

@@ -22,8 +22,9 @@ from collections.abc import Callable
 
 import numba as nb
 
+from . import grid as grid_kernels
 from .forces.axial import axial_forces
-from .integrators import bending_weight, external_forces
+from .integrators import bending_weight, evaluate_bending, external_forces
 from .state import NetState
 
 CALIBRATION_S = 0.4
@@ -86,13 +87,21 @@ def instrument(profile: Profile, engine, recorder) -> None:
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _force_loop(steps, bending, every, pos, vel, quat, omega, model, work, gravity, external):
-    """The force kernels of ``steps`` steps on a fixed state, bending on its schedule."""
+def _force_loop(steps, bending, every, pos, vel, quat, omega, model, work, gravity, external,
+                grid, views):
+    """The force kernels of ``steps`` steps on a fixed state, bending on its schedule: the
+    grid's (``grid.n`` > 0; pos, vel and work's bend its views) or the pair list's."""
     for _ in range(steps):
         weight = bending_weight(bending, every, work)
-        external_forces(pos, vel, quat, omega, model, work, gravity, external, weight, False)
-        axial_forces(pos, vel, model.pairs, model.rest, model.k_a, model.c_a, model.bilateral,
-                     work.force, work.tension)
+        if grid.n:
+            if weight > 0.0:
+                evaluate_bending(pos, vel, quat, omega, model, work)
+            grid_kernels.thread_forces(grid, views)
+        else:
+            external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
+                            False)
+            axial_forces(pos, vel, model.pairs, model.rest, model.k_a, model.c_a,
+                         model.bilateral, work.force, work.tension)
         work.step_count[0] += 1
 
 
@@ -117,10 +126,19 @@ def step_split(engine, state: NetState) -> dict | None:
         copy = state.copy()
         engine.advance(copy, copy.time + steps * engine.dt)
 
+    grid, views = getattr(engine, "grid", grid_kernels.build(None)), None
+    if grid.n:  # the grid's force kernels, on its rows (they hold the last state reached)
+        views = engine.views
+        pos, vel = views.position, views.velocity
+        work = work._replace(bend=views.bend)
+    else:
+        pos, vel = state.position.copy(), state.velocity.copy()
+        views = grid_kernels.views(grid)
+
     def forces(steps):
-        _force_loop(steps, engine.bending, engine.bending_every, state.position.copy(),
-                    state.velocity.copy(), quat.copy(), omega.copy(), engine.arrays,
-                    work, engine.gravity, engine.external)
+        _force_loop(steps, engine.bending, engine.bending_every, pos, vel, quat.copy(),
+                    omega.copy(), engine.arrays, work, engine.gravity, engine.external, grid,
+                    views)
 
     flags = engine.contact.arrays.flags
     saved = flags.copy()

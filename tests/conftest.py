@@ -19,14 +19,14 @@ def scene():
     return small_scene()
 
 
-def small_capture():
+def small_capture(**overrides):
     """The capture scene shrunk to a 6 x 6 net, 1 m mesh, with the debris 3 m above it coming
     down at 2 m/s: the net touches it between 0.4 and 0.6 s; 1 s at 20 Hz (0.2 s of wall
-    time once the kernels are compiled)."""
+    time once the kernels are compiled); with dotted-key overrides."""
     return bn.load_scenario("capture", {
         "net.nodes_per_side": 6, "net.mesh_length": 1.0, "debris.position": [0.0, 0.0, 3.0],
         "debris.velocity": [0.0, 0.0, -2.0], "scene.duration": 1.0,
-        "simulation.record_rate": 20.0})
+        "simulation.record_rate": 20.0, **overrides})
 
 
 @pytest.fixture(scope="session")
