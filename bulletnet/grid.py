@@ -373,21 +373,42 @@ def _apply(grid, rows, out):
                       grid.o_axis, out[:, :count].T)
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _add_thread_block(m, blocks, row, axis, col):
+    """m + the implicit block of the thread at column ``col`` of blocks[row], axis (its
+    along, across, e), or m itself for a slack thread (its terms are zeroed, not skipped,
+    so that the loop over nodes has no branch; m + 0.0 is m)."""
+    on = blocks[row, col] != 0.0
+    along = blocks[row, col] if on else 0.0
+    across = blocks[row + ONE, col] if on else 0.0
+    return add_block(m, along, across, axis[0, col] if on else 0.0,
+                     axis[1, col] if on else 0.0, axis[2, col] if on else 0.0)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _store(rows, i, m):
+    """Column i of (9, L) ``rows`` <- the 9-tuple m (stored entry by entry: a tuple indexed
+    in a loop would compile to a jump table and keep the node loop from vectorizing)."""
+    rows[0, i], rows[1, i], rows[2, i] = m[0], m[1], m[2]
+    rows[3, i], rows[4, i], rows[5, i] = m[3], m[4], m[5]
+    rows[6, i], rows[7, i], rows[8, i] = m[6], m[7], m[8]
+
+
 @nb.njit(cache=True, error_model="numpy")
 def _block_jacobi(grid):
     """Each node's 3 x 3 diagonal block of the implicit system, inverted, into block_inv."""
-    ns, n, count, mass, inv = grid.ns, grid.n, grid.count, grid.mass, grid.block_inv
+    ns, n, count, mass, inv = U(grid.ns), U(grid.n), U(grid.count), grid.mass, grid.block_inv
     blocks, eh, ev = grid.blocks, grid.eh, grid.ev
-    for i in range(count):
+    for i in range(n):  # v(i - Ns), h(i - 1), h(i), v(i): the pair-list order
         m = (mass[i], 0.0, 0.0, 0.0, mass[i], 0.0, 0.0, 0.0, mass[i])
-        if i < n:  # v(i - Ns), h(i - 1), h(i), v(i): the pair-list order
-            for col, row in ((i, 2), (ns + i - 1, 0), (ns + i, 0), (ns + i, 2)):
-                e = ev if row == 2 else eh
-                if blocks[row, col] != 0.0:
-                    m = add_block(m, blocks[row, col], blocks[row + 1, col], e[0, col],
-                                  e[1, col], e[2, col])
+        m = _add_thread_block(m, blocks, U(2), ev, i)
+        m = _add_thread_block(m, blocks, U(0), eh, ns + i - ONE)
+        m = _add_thread_block(m, blocks, U(0), eh, ns + i)
+        m = _add_thread_block(m, blocks, U(2), ev, ns + i)
+        _store(inv, i, m)
+    for i in range(n, count):
         for a in range(9):
-            inv[a, i] = m[a]
+            inv[a, i] = mass[i] if a % 4 == 0 else 0.0
     pairs, along, across, axis = grid.o_pairs, grid.o_along, grid.o_across, grid.o_axis
     for q in range(pairs.shape[0]):
         if along[q] == 0.0 and across[q] == 0.0:
@@ -399,10 +420,8 @@ def _block_jacobi(grid):
             for a in range(9):
                 inv[a, node] = m[a]
     for i in range(count):
-        m = invert3((inv[0, i], inv[1, i], inv[2, i], inv[3, i], inv[4, i], inv[5, i],
-                     inv[6, i], inv[7, i], inv[8, i]))
-        for a in range(9):
-            inv[a, i] = m[a]
+        _store(inv, i, invert3((inv[0, i], inv[1, i], inv[2, i], inv[3, i], inv[4, i],
+                                inv[5, i], inv[6, i], inv[7, i], inv[8, i])))
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")

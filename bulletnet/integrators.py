@@ -375,21 +375,6 @@ def increment(method, weight, pos, vel, quat, omega, model, work, gravity, exter
 
 
 @nb.njit(cache=True, error_model="numpy")
-def grid_step(method, weight, pos, vel, quat, omega, model, work, grid, views, dt, tol):
-    """One whole step of ``method`` on the grid's rows (:mod:`bulletnet.grid`): the bending
-    springs (with ``weight``, as :func:`external_forces`), the threads, the velocity and
-    position update; counts the step. ``pos``, ``vel`` and work's dv and bend must be the
-    grid's views."""
-    if weight > 0.0:
-        evaluate_bending(pos, vel, quat, omega, model, work)
-    if method == SYMPLECTIC_EULER:
-        grid_kernels.symplectic_step(grid, views, dt, weight)
-    else:
-        grid_kernels.implicit_step(grid, views, dt, tol, work.cg_iterations)
-    work.step_count[0] += 1
-
-
-@nb.njit(cache=True, error_model="numpy")
 def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, gravity,
             external, dt, tol, contact, t0, grid, views):
     """Take up to ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]) from
@@ -402,7 +387,7 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
     symplectic) or are held over it (implicit Euler: a smooth right-hand side keeps the CG
     warm start); either way the orientations are advanced once per interval
     (:func:`~bulletnet.forces.bending.advance_rotation`). With a non-empty ``grid`` the
-    threads are its stencils (:func:`grid_step`): ``pos``, ``vel`` and work's dv and bend are
+    threads are its stencils (:mod:`bulletnet.grid`): ``pos``, ``vel`` and work's dv and bend are
     then its ``views``, and gravity and external have been loaded into its base."""
     n = pos.shape[0]
     mass, fixed, radius = model.mass, model.fixed, model.radius
@@ -424,8 +409,14 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
         if weight > 0.0 and pending > 0:
             advance_rotation(quat, omega, gain, torque, hold, pending, dt)
             pending = 0
-        if grid.n:
-            grid_step(method, weight, pos, vel, quat, omega, model, work, grid, views, dt, tol)
+        if grid.n:  # the grid's stencils (bending as in external_forces)
+            if weight > 0.0:
+                evaluate_bending(pos, vel, quat, omega, model, work)
+            if method == SYMPLECTIC_EULER:
+                grid_kernels.symplectic_step(grid, views, dt, weight)
+            else:
+                grid_kernels.implicit_step(grid, views, dt, tol, work.cg_iterations)
+            work.step_count[0] += 1
         else:
             increment(method, weight, pos, vel, quat, omega, model, work, gravity, external,
                       dt, tol)

@@ -104,8 +104,8 @@ def add_block(m, along, across, ex, ey, ez):
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def invert3(m):
-    """The inverse of a 3 x 3 matrix given and returned as a row-major 9-tuple (cofactors over
-    the determinant)."""
+    """The inverse of a 3 x 3 matrix given and returned as a row-major 9-tuple (cofactors times
+    the determinant's reciprocal: one division, not nine)."""
     c00 = m[4] * m[8] - m[5] * m[7]
     c01 = m[5] * m[6] - m[3] * m[8]
     c02 = m[3] * m[7] - m[4] * m[6]
@@ -116,8 +116,8 @@ def invert3(m):
     c20 = m[1] * m[5] - m[2] * m[4]
     c21 = m[2] * m[3] - m[0] * m[5]
     c22 = m[0] * m[4] - m[1] * m[3]
-    return (c00 / det, c10 / det, c20 / det, c01 / det, c11 / det, c21 / det,
-            c02 / det, c12 / det, c22 / det)
+    r = 1.0 / det
+    return (c00 * r, c10 * r, c20 * r, c01 * r, c11 * r, c21 * r, c02 * r, c12 * r, c22 * r)
 
 
 @nb.njit(cache=True, error_model="numpy")
