@@ -36,6 +36,14 @@ from .forces.axial import (
     invert3,
     tension_law,
 )
+from .forces.bending import (
+    angular_torque,
+    bending_forces,
+    relative_quaternion,
+    relative_rotation_vector,
+    small_rotation_vector,
+    transverse_force,
+)
 from .model import NetModel
 from .topology import thread_pairs
 
@@ -66,6 +74,12 @@ class Grid(NamedTuple):
     """Its axial stiffness [N/m], shape (Ns^2 - Ns,)."""
     v_c: np.ndarray
     """Its axial damping [N s/m], shape (Ns^2 - Ns,)."""
+    h_bend: np.ndarray
+    """Bending parameters of thread i -> i + 1 at column i: k_t [N/m], c_t [N s/m], k_b
+    [N m/rad], c_b [N m s/rad], rest axis in node i's frame (3) [-], shape (7, Ns^2 - 1)
+    (zero at a row's end)."""
+    v_bend: np.ndarray
+    """The same for thread i -> i + Ns, shape (7, Ns^2 - Ns)."""
     o_pairs: np.ndarray
     """The other threads' end nodes [-], shape (Q, 2), int64."""
     o_rest: np.ndarray
@@ -117,6 +131,16 @@ class Grid(NamedTuple):
     """Their implicit block across the thread [kg], shape (Q,)."""
     o_axis: np.ndarray
     """Their unit directions [-], shape (Q, 3)."""
+    o_bend: np.ndarray
+    """Their bending parameters, as h_bend, shape (7, Q)."""
+    o_shear: np.ndarray
+    """Their shear force magnitude [N], shape (Q,)."""
+    bh: np.ndarray
+    """Bending of thread h(i) at column Ns + i: force on node i [N] (3), r x that force
+    [N m] (3), torque on node i [N m] (3), 1 where its relative rotation is too large for the
+    series (:func:`~bulletnet.forces.bending.small_rotation_vector`), shape (10, Ns + Ns^2)."""
+    bv: np.ndarray
+    """The same for thread v(i), shape (10, Ns + Ns^2)."""
 
 
 class GridViews(NamedTuple):
@@ -166,40 +190,37 @@ def _carve(shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
 def build(model: NetModel | None) -> Grid:
     """The grid of a net that :func:`applies`: its threads' parameters rearranged by stencil
     and zeroed state and scratch; with None, an empty grid (``n`` 0: the pair-list path)."""
-    ns = model.nodes_per_side if model is not None else 0
-    n, count = ns * ns, model.node_count if model is not None else 0
-    inner = 2 * ns * (ns - 1)
-    h_rest = np.full(max(n - 1, 0), np.inf)
-    h_k, h_c = np.zeros_like(h_rest), np.zeros_like(h_rest)
-    v_rest, v_k, v_c = np.zeros(n - ns), np.zeros(n - ns), np.zeros(n - ns)
-    for p, (i, j) in enumerate(model.pairs[:inner] if model is not None else ()):
-        if j == i + 1:
-            h_rest[i], h_k[i], h_c[i] = (model.rest_length[p], model.axial_stiffness[p],
-                                         model.axial_damping[p])
-        else:
-            v_rest[i], v_k[i], v_c[i] = (model.rest_length[p], model.axial_stiffness[p],
-                                         model.axial_damping[p])
-    others = slice(inner, None)
-    o_pairs = model.pairs[others].copy() if model is not None else np.zeros((0, 2), np.int64)
-    q = o_pairs.shape[0]
-    length = _rows(count)
-    wide = ns + n
-    (x, v, dv, base, bend, other, th, tv, eh, ev, blocks, wh, wv, cg, block_inv, o_axis) = _carve(
-        [(3, length)] * 6 + [(3, wide)] * 4 + [(4, wide), (3, wide), (3, wide),
-                                               (4, 3, length), (9, length), (q, 3)])
-    mass = model.mass.copy() if model is not None else np.zeros(0)
-
-    def thread_array(values):
-        return values[others].copy() if model is not None else np.zeros(0)
-
+    if model is None:
+        ns = count = 0
+        pairs, mass = np.zeros((0, 2), np.int64), np.zeros(0)
+        per_thread = np.zeros((10, 0))
+    else:
+        ns, count, pairs, mass = model.nodes_per_side, model.node_count, model.pairs, model.mass
+        per_thread = np.vstack([  # rows: rest, k, c, then the bending parameters (h_bend)
+            model.rest_length, model.axial_stiffness, model.axial_damping,
+            model.transverse_stiffness, model.transverse_damping, model.bending_stiffness,
+            model.bending_damping, model.rest_axis.T])
+    n, inner = ns * ns, 2 * ns * (ns - 1)
+    h = np.zeros((10, max(n - 1, 0)))
+    h[0] = np.inf  # a row's end: never taut, every parameter zero
+    v = np.zeros((10, n - ns))
+    for p, (i, j) in enumerate(pairs[:inner]):
+        (h if j == i + 1 else v)[:, i] = per_thread[:, p]
+    o = np.ascontiguousarray(per_thread[:, inner:])
+    q = o.shape[1]
+    length, wide = _rows(count), ns + n
+    (x, vel, dv, base, bend, other, th, tv, eh, ev, blocks, wh, wv, cg, block_inv, o_axis,
+     bh, bv) = _carve([(3, length)] * 6 + [(3, wide)] * 4
+                      + [(4, wide), (3, wide), (3, wide), (4, 3, length), (9, length), (q, 3),
+                         (10, wide), (10, wide)])
     return Grid(
-        ns=ns, n=n, count=count, h_rest=h_rest, h_k=h_k, h_c=h_c, v_rest=v_rest, v_k=v_k,
-        v_c=v_c, o_pairs=o_pairs, o_rest=thread_array(model.rest_length if model else None),
-        o_k=thread_array(model.axial_stiffness if model else None),
-        o_c=thread_array(model.axial_damping if model else None), mass=mass,
-        inv_mass=1.0 / mass, x=x, v=v, dv=dv, base=base, bend=bend, other=other, th=th, tv=tv,
-        eh=eh, ev=ev, blocks=blocks, wh=wh, wv=wv, cg=cg, block_inv=block_inv,
-        o_tension=np.zeros(q), o_along=np.zeros(q), o_across=np.zeros(q), o_axis=o_axis)
+        ns=ns, n=n, count=count, h_rest=h[0].copy(), h_k=h[1].copy(), h_c=h[2].copy(),
+        v_rest=v[0].copy(), v_k=v[1].copy(), v_c=v[2].copy(), h_bend=h[3:].copy(),
+        v_bend=v[3:].copy(), o_pairs=pairs[inner:].copy(), o_rest=o[0].copy(), o_k=o[1].copy(),
+        o_c=o[2].copy(), mass=mass.copy(), inv_mass=1.0 / mass, x=x, v=vel, dv=dv, base=base,
+        bend=bend, other=other, th=th, tv=tv, eh=eh, ev=ev, blocks=blocks, wh=wh, wv=wv, cg=cg,
+        block_inv=block_inv, o_tension=np.zeros(q), o_along=np.zeros(q), o_across=np.zeros(q),
+        o_axis=o_axis, o_bend=o[3:].copy(), o_shear=np.zeros(q), bh=bh, bv=bv)
 
 
 def views(grid: Grid) -> GridViews:
@@ -530,3 +551,74 @@ def free_steps(grid, views, implicit, steps, dt, tol, iterations):
             implicit_step(grid, views, dt, tol, iterations)
         else:
             symplectic_step(grid, views, dt, 0.0)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _bending_stencil(x, v, quat, omega, off, params, out, count, ns):
+    """The bending springs of threads t < ``count`` from node t to node t + ``off``
+    (:func:`~bulletnet.forces.bending.bending_forces`' arithmetic) into column Ns + t of
+    ``out`` (see :attr:`Grid.bh`); the rotation vector by its series, flagged in out[9]
+    where the series does not apply (:func:`_large_rotations` redoes those). x [m], v [m/s]
+    are (3, L) rows, quat (N, 4) and omega [rad/s] (N, 3) the nodes' rotations."""
+    for t in range(count):
+        j, col = t + off, t + ns
+        rx, ry, rz = x[0, j] - x[0, t], x[1, j] - x[1, t], x[2, j] - x[2, t]
+        fx, fy, fz = transverse_force(
+            rx, ry, rz, v[0, j] - v[0, t], v[1, j] - v[1, t], v[2, j] - v[2, t],
+            quat[t, 0], quat[t, 1], quat[t, 2], quat[t, 3], omega[t, 0], omega[t, 1],
+            omega[t, 2], params[4, t], params[5, t], params[6, t], params[0, t], params[1, t])
+        qx, qy, qz, qw, s = relative_quaternion(quat[t, 0], quat[t, 1], quat[t, 2], quat[t, 3],
+                                                quat[j, 0], quat[j, 1], quat[j, 2], quat[j, 3])
+        px, py, pz = small_rotation_vector(qx, qy, qz, qw, s)
+        tx, ty, tz = angular_torque(px, py, pz, omega[j, 0] - omega[t, 0],
+                                    omega[j, 1] - omega[t, 1], omega[j, 2] - omega[t, 2],
+                                    params[2, t], params[3, t])
+        out[0, col], out[1, col], out[2, col] = fx, fy, fz
+        out[3, col], out[4, col], out[5, col] = ry * fz - rz * fy, rz * fx - rx * fz, \
+            rx * fy - ry * fx
+        out[6, col], out[7, col], out[8, col] = tx, ty, tz
+        out[9, col] = 0.0 if s < 1e-2 * qw else 1.0
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _large_rotations(quat, omega, off, params, out, count, ns):
+    """Redo the angular springs of the threads :func:`_bending_stencil` flagged, with the
+    exact rotation vector."""
+    for t in range(count):
+        col = t + ns
+        if out[9, col] == 0.0:
+            continue
+        j = t + off
+        px, py, pz = relative_rotation_vector(quat[t, 0], quat[t, 1], quat[t, 2], quat[t, 3],
+                                              quat[j, 0], quat[j, 1], quat[j, 2], quat[j, 3])
+        out[6, col], out[7, col], out[8, col] = angular_torque(
+            px, py, pz, omega[j, 0] - omega[t, 0], omega[j, 1] - omega[t, 1],
+            omega[j, 2] - omega[t, 2], params[2, t], params[3, t])
+
+
+@nb.njit(cache=True, error_model="numpy")
+def bending(grid, views, quat, omega, torque):
+    """The bending springs afresh (as :func:`~bulletnet.integrators.evaluate_bending`, in the
+    pair-list order): forces [N] into the bend rows, torques [N m] into ``torque`` (N, 3)."""
+    ns, n, count = U(grid.ns), U(grid.n), U(grid.count)
+    x, v, bh, bv, bend = grid.x, grid.v, grid.bh, grid.bv, grid.bend
+    _bending_stencil(x, v, quat, omega, ONE, grid.h_bend, bh, n - ONE, ns)
+    _bending_stencil(x, v, quat, omega, ns, grid.v_bend, bv, n - ns, ns)
+    _large_rotations(quat, omega, ONE, grid.h_bend, bh, n - ONE, ns)
+    _large_rotations(quat, omega, ns, grid.v_bend, bv, n - ns, ns)
+    for a in range(U(3)):
+        for i in range(n):
+            bend[a, i] = (((0.0 - bv[a, i]) - bh[a, i + ns - ONE]) + bh[a, i + ns]) \
+                + bv[a, i + ns]
+        for i in range(n, count):
+            bend[a, i] = 0.0
+    for a in range(U(3)):
+        for i in range(n):
+            torque[i, a] = (((((0.0 - bv[a + U(6), i]) - bh[a + U(6), i + ns - ONE])
+                              + bh[a + U(3), i + ns]) + bh[a + U(6), i + ns])
+                            + bv[a + U(3), i + ns]) + bv[a + U(6), i + ns]
+        for i in range(n, count):
+            torque[i, a] = 0.0
+    p = grid.o_bend
+    bending_forces(views.position, views.velocity, quat, omega, grid.o_pairs, p[4:].T, p[0],
+                   p[1], p[2], p[3], views.bend, torque, grid.o_shear)

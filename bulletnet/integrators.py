@@ -411,7 +411,7 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
             pending = 0
         if grid.n:  # the grid's stencils (bending as in external_forces)
             if weight > 0.0:
-                evaluate_bending(pos, vel, quat, omega, model, work)
+                grid_kernels.bending(grid, views, quat, omega, work.torque)
             if method == SYMPLECTIC_EULER:
                 grid_kernels.symplectic_step(grid, views, dt, weight)
             else:

@@ -24,7 +24,7 @@ import numba as nb
 
 from . import grid as grid_kernels
 from .forces.axial import axial_forces
-from .integrators import bending_weight, evaluate_bending, external_forces
+from .integrators import bending_weight, external_forces
 from .state import NetState
 
 CALIBRATION_S = 0.4
@@ -95,7 +95,7 @@ def _force_loop(steps, bending, every, pos, vel, quat, omega, model, work, gravi
         weight = bending_weight(bending, every, work)
         if grid.n:
             if weight > 0.0:
-                evaluate_bending(pos, vel, quat, omega, model, work)
+                grid_kernels.bending(grid, views, quat, omega, work.torque)
             grid_kernels.thread_forces(grid, views)
         else:
             external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,

@@ -35,22 +35,61 @@ def rotate(qx, qy, qz, qw, vx, vy, vz):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def relative_rotation_vector(ix, iy, iz, iw, jx, jy, jz, jw):
-    """Rotation vector [rad] of q_j q_i^* (world frame), the shortest of the two."""
+def relative_quaternion(ix, iy, iz, iw, jx, jy, jz, jw):
+    """q_j q_i^* (x, y, z, w) with w >= 0 (the shorter of the two rotations), and the norm s
+    of its vector part."""
     x = -jw * ix + jx * iw - jy * iz + jz * iy
     y = -jw * iy + jy * iw - jz * ix + jx * iz
     z = -jw * iz + jz * iw - jx * iy + jy * ix
     w = jw * iw + jx * ix + jy * iy + jz * iz
     if w < 0.0:
         x, y, z, w = -x, -y, -z, -w
-    s = np.sqrt(x * x + y * y + z * z)
+    return x, y, z, w, np.sqrt(x * x + y * y + z * z)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def small_rotation_vector(x, y, z, w, s):
+    """Rotation vector [rad] of the unit quaternion (x, y, z, w), w > 0, valid where the
+    vector part's norm s < 1e-2 w: angle / s = 2 atan(s / w) / s by its series (next term
+    ~ (s/w)^10: below round-off). Branch-free."""
+    r2 = (s / w) ** 2
+    g = 2.0 / w * (1.0 - r2 * (1.0 / 3.0 - r2 * (0.2 - r2 * (1.0 / 7.0 - r2 / 9.0))))
+    return g * x, g * y, g * z
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def relative_rotation_vector(ix, iy, iz, iw, jx, jy, jz, jw):
+    """Rotation vector [rad] of q_j q_i^* (world frame), the shortest of the two."""
+    x, y, z, w, s = relative_quaternion(ix, iy, iz, iw, jx, jy, jz, jw)
     if s < 1e-2 * w:
-        # angle / s = 2 atan(s / w) / s by its series (next term ~ (s/w)^10: below round-off)
-        r2 = (s / w) ** 2
-        g = 2.0 / w * (1.0 - r2 * (1.0 / 3.0 - r2 * (0.2 - r2 * (1.0 / 7.0 - r2 / 9.0))))
-        return g * x, g * y, g * z
+        return small_rotation_vector(x, y, z, w, s)
     angle = 2.0 * np.arctan2(s, w)
     return angle * x / s, angle * y / s, angle * z / s
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def transverse_force(rx, ry, rz, dvx, dvy, dvz, qx, qy, qz, qw, wx, wy, wz, ax0, ay0, az0,
+                     k_t, c_t):
+    """The transverse spring and damper of one thread (module doc): its force f [N] on node
+    i (-f on j), from r = x_j - x_i [m], v_j - v_i [m/s], node i's orientation q and angular
+    velocity w [rad/s], the rest axis a0 in i's frame, k_t [N/m] and c_t [N s/m]."""
+    ax, ay, az = rotate(qx, qy, qz, qw, ax0, ay0, az0)
+    s = ax * rx + ay * ry + az * rz
+    dx, dy, dz = rx - s * ax, ry - s * ay, rz - s * az
+    ux = dvx - (wy * rz - wz * ry)
+    uy = dvy - (wz * rx - wx * rz)
+    uz = dvz - (wx * ry - wy * rx)
+    au = ax * ux + ay * uy + az * uz
+    return (k_t * dx + c_t * (ux - au * ax), k_t * dy + c_t * (uy - au * ay),
+            k_t * dz + c_t * (uz - au * az))
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def angular_torque(px, py, pz, dwx, dwy, dwz, k_b, c_b):
+    """The angular spring and damper of one thread: its torque [N m] on node i (minus on j),
+    from the relative rotation vector phi [rad], w_j - w_i [rad/s], k_b [N m/rad] and c_b
+    [N m s/rad]."""
+    return k_b * px + c_b * dwx, k_b * py + c_b * dwy, k_b * pz + c_b * dwz
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -63,18 +102,10 @@ def bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b,
         rx = pos[j, 0] - pos[i, 0]
         ry = pos[j, 1] - pos[i, 1]
         rz = pos[j, 2] - pos[i, 2]
-        ax, ay, az = rotate(quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3],
-                            rest_axis[p, 0], rest_axis[p, 1], rest_axis[p, 2])
-        s = ax * rx + ay * ry + az * rz
-        dx, dy, dz = rx - s * ax, ry - s * ay, rz - s * az
-        wx, wy, wz = omega[i, 0], omega[i, 1], omega[i, 2]
-        ux = vel[j, 0] - vel[i, 0] - (wy * rz - wz * ry)
-        uy = vel[j, 1] - vel[i, 1] - (wz * rx - wx * rz)
-        uz = vel[j, 2] - vel[i, 2] - (wx * ry - wy * rx)
-        au = ax * ux + ay * uy + az * uz
-        fx = k_t[p] * dx + c_t[p] * (ux - au * ax)
-        fy = k_t[p] * dy + c_t[p] * (uy - au * ay)
-        fz = k_t[p] * dz + c_t[p] * (uz - au * az)
+        fx, fy, fz = transverse_force(
+            rx, ry, rz, vel[j, 0] - vel[i, 0], vel[j, 1] - vel[i, 1], vel[j, 2] - vel[i, 2],
+            quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3], omega[i, 0], omega[i, 1],
+            omega[i, 2], rest_axis[p, 0], rest_axis[p, 1], rest_axis[p, 2], k_t[p], c_t[p])
         shear[p] = np.sqrt(fx * fx + fy * fy + fz * fz)
         add_pair(force, i, j, fx, fy, fz)
         torque[i, 0] += ry * fz - rz * fy
@@ -82,9 +113,9 @@ def bending_forces(pos, vel, quat, omega, pairs, rest_axis, k_t, c_t, k_b, c_b,
         torque[i, 2] += rx * fy - ry * fx
         px, py, pz = relative_rotation_vector(quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3],
                                               quat[j, 0], quat[j, 1], quat[j, 2], quat[j, 3])
-        tx = k_b[p] * px + c_b[p] * (omega[j, 0] - omega[i, 0])
-        ty = k_b[p] * py + c_b[p] * (omega[j, 1] - omega[i, 1])
-        tz = k_b[p] * pz + c_b[p] * (omega[j, 2] - omega[i, 2])
+        tx, ty, tz = angular_torque(px, py, pz, omega[j, 0] - omega[i, 0],
+                                    omega[j, 1] - omega[i, 1], omega[j, 2] - omega[i, 2],
+                                    k_b[p], c_b[p])
         add_pair(torque, i, j, tx, ty, tz)
 
 
