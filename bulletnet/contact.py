@@ -27,6 +27,10 @@ import numpy as np
 
 from .forces.bending import integrate_rotation
 from .forces.contact import (
+    BOX,
+    FRUSTUM,
+    PART_COLUMNS,
+    SPHERE,
     debris_distance,
     friction_impulse,
     implicit_normal_step,
@@ -63,7 +67,8 @@ class ContactArrays(NamedTuple):
     params: np.ndarray
     """Friction slip [s/kg], Verlet skin [m], normal law (1: implicit, 0: exact), shape (3,)."""
     parts: np.ndarray
-    """Debris frustums: y_start, y_end, radius_start, radius_end [m], shape (K, 4)."""
+    """Debris parts, one row each (:data:`~bulletnet.forces.contact.PART_COLUMNS`: shape
+    code, pose in the body frame [-, m], dimensions [m]; :func:`part_rows`), shape (K, 17)."""
     com_body: np.ndarray
     """Debris centre of mass in its body frame [m], shape (3,)."""
     bound: np.ndarray
@@ -135,6 +140,22 @@ def pair_tables(s: Scenario, model: NetModel) -> tuple[np.ndarray, ...]:
     return k, c, mu_s, mu_s / f.kinetic_ratio
 
 
+def part_rows(parts) -> np.ndarray:
+    """Debris parts (:class:`~bulletnet.debris.Part`) as the compiled contact loop reads
+    them, shape (K, :data:`~bulletnet.forces.contact.PART_COLUMNS`): shape code, rotation
+    from the part frame to the body frame (row-major) [-], the part frame's origin [m] and
+    the dimensions [m] (a box's as half edge lengths)."""
+    rows = np.zeros((len(parts), PART_COLUMNS))
+    for k, part in enumerate(parts):
+        code, size = {"frustum": (FRUSTUM, part.size), "box": (BOX, 0.5 * np.asarray(part.size)),
+                      "sphere": (SPHERE, part.size)}[part.shape]
+        rows[k, 0] = code
+        rows[k, 1:10] = part.matrix.ravel()
+        rows[k, 10:13] = part.position
+        rows[k, 13:13 + len(size)] = size
+    return rows
+
+
 def setup(s: Scenario, model: NetModel, debris=None, enabled: bool = True) -> ContactSetup:
     """The contact arrays of a scene: with ``debris`` (a :class:`~bulletnet.debris.Debris`)
     if the scene has one, self-contact if the scene asks for it; nothing with ``enabled``
@@ -149,14 +170,11 @@ def setup(s: Scenario, model: NetModel, debris=None, enabled: bool = True) -> Co
     else:
         k = c = mu_s = mu_k = np.zeros((5, 5))
     if has_debris:
-        parts = np.array([[p.y_start, p.y_end, p.radius_start, p.radius_end]
-                          for p in debris.parts])
+        parts = part_rows(debris.parts)
         com_body = np.asarray(debris.center_of_mass, dtype=float)
-        bound = max(math.hypot(max(p.radius_start, p.radius_end),
-                               max(abs(p.y_start - com_body[1]), abs(p.y_end - com_body[1])))
-                    for p in debris.parts) + float(np.hypot(com_body[0], com_body[2]))
+        bound = max(p.reach(com_body) for p in debris.parts)
     else:
-        parts, com_body, bound = np.zeros((0, 4)), np.zeros(3), 0.0
+        parts, com_body, bound = np.zeros((0, PART_COLUMNS)), np.zeros(3), 0.0
     capacity = 16 * n if self_contact else 0
     arrays = ContactArrays(
         node_class=node_class, stiffness=k, damping=c, mu_static=mu_s, mu_kinetic=mu_k,

@@ -154,7 +154,7 @@ class BulletEngine(Engine):
             if not np.isfinite(state.position).all():
                 break
         if self.debris_body is not None:
-            read_state(c, self.debris_body, state.debris)
+            read_state(c, self.debris_body, state.debris, self.debris)
         self._impulse_time += interval
         state.time = t_end
 

@@ -252,27 +252,85 @@ def frustum_distance(rho, y, y0, y1, r0, r1):
     return best, n_rho, n_y
 
 
+PART_COLUMNS = 17
+"""Length of a debris part's row in the compiled contact loop: shape code (column 0), the
+rotation from the part frame to the body frame, row-major (1-9) [-], the part frame's origin
+in the body frame (10-12) [m] and the shape's dimensions (13-16) [m]: a frustum's y_start,
+y_end, radius_start, radius_end along its y axis; a box's half edge lengths x, y, z (and 0);
+a sphere's radius (and 0, 0, 0)."""
+FRUSTUM, BOX, SPHERE = 0.0, 1.0, 2.0
+"""Shape codes of a part row (column 0)."""
+
+
+@nb.njit(cache=True, error_model="numpy")
+def box_distance(x, y, z, hx, hy, hz):
+    """Signed distance [m] (negative inside) from the point (x, y, z) [m] to the box
+    |x| <= hx, |y| <= hy, |z| <= hz [m] centred at the origin, and the outward normal
+    (nx, ny, nz) there: towards the closest point outside, of the nearest face inside (on a
+    face, edge or corner: of the first face in x, y, z order with the largest offset)."""
+    qx, qy, qz = abs(x) - hx, abs(y) - hy, abs(z) - hz
+    sx = 1.0 if x >= 0.0 else -1.0
+    sy = 1.0 if y >= 0.0 else -1.0
+    sz = 1.0 if z >= 0.0 else -1.0
+    if qx > 0.0 or qy > 0.0 or qz > 0.0:
+        ox, oy, oz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
+        d = math.sqrt(ox * ox + oy * oy + oz * oz)
+        return d, sx * ox / d, sy * oy / d, sz * oz / d
+    if qx >= qy and qx >= qz:
+        return qx, sx, 0.0, 0.0
+    if qy >= qz:
+        return qy, 0.0, sy, 0.0
+    return qz, 0.0, 0.0, sz
+
+
+@nb.njit(cache=True, error_model="numpy")
+def sphere_distance(x, y, z, r):
+    """Signed distance [m] from the point (x, y, z) [m] to the ball of radius r [m] at the
+    origin, and the outward normal (nx, ny, nz) there (+y at the centre)."""
+    length = math.sqrt(x * x + y * y + z * z)
+    if length == 0.0:
+        return -r, 0.0, 1.0, 0.0
+    return length - r, x / length, y / length, z / length
+
+
+@nb.njit(cache=True, error_model="numpy")
+def part_distance(row, bx, by, bz):
+    """Signed distance [m] from the body-frame point (bx, by, bz) [m] to the part of
+    ``row`` (:data:`PART_COLUMNS`,), and the outward normal there in the body frame."""
+    dx, dy, dz = bx - row[10], by - row[11], bz - row[12]
+    x = row[1] * dx + row[4] * dy + row[7] * dz  # the part frame: R^T (b - t)
+    y = row[2] * dx + row[5] * dy + row[8] * dz
+    z = row[3] * dx + row[6] * dy + row[9] * dz
+    if row[0] == BOX:
+        d, nx, ny, nz = box_distance(x, y, z, row[13], row[14], row[15])
+    elif row[0] == SPHERE:
+        d, nx, ny, nz = sphere_distance(x, y, z, row[13])
+    else:
+        rho = math.hypot(x, z)
+        ex, ez = (x / rho, z / rho) if rho > 1e-12 else (1.0, 0.0)
+        d, n_rho, ny = frustum_distance(rho, y, row[13], row[14], row[15], row[16])
+        nx, nz = n_rho * ex, n_rho * ez
+    return (d, row[1] * nx + row[2] * ny + row[3] * nz, row[4] * nx + row[5] * ny
+            + row[6] * nz, row[7] * nx + row[8] * ny + row[9] * nz)
+
+
 @nb.njit(cache=True, error_model="numpy")
 def debris_distance(p, origin, rot, parts, normal):
     """Signed distance [m] from world point p (3,) to the debris whose body frame sits at
-    ``origin`` (3,) [m] with rotation ``rot`` (3, 3); ``parts`` (K, 4) are frustums
-    (y0, y1, r0, r1) [m] along the body y axis. The outward world normal goes into
-    ``normal`` (3,). Parts are united by the smallest distance (exact outside the debris)."""
+    ``origin`` (3,) [m] with rotation ``rot`` (3, 3); ``parts`` (K, :data:`PART_COLUMNS`)
+    are its parts. The outward world normal goes into ``normal`` (3,). Parts are united by
+    the smallest distance (exact outside the debris)."""
     bx = by = bz = 0.0
     for a in range(3):
         d = p[a] - origin[a]
         bx += rot[a, 0] * d
         by += rot[a, 1] * d
         bz += rot[a, 2] * d
-    rho = math.hypot(bx, bz)
-    ex, ez = (bx / rho, bz / rho) if rho > 1e-12 else (1.0, 0.0)
-    best, n_rho, n_y = np.inf, 0.0, 1.0
+    best, nbx, nby, nbz = np.inf, 0.0, 1.0, 0.0
     for k in range(parts.shape[0]):
-        d, nr, ny = frustum_distance(rho, by, parts[k, 0], parts[k, 1], parts[k, 2],
-                                     parts[k, 3])
+        d, nx, ny, nz = part_distance(parts[k], bx, by, bz)
         if d < best:
-            best, n_rho, n_y = d, nr, ny
-    nbx, nby, nbz = n_rho * ex, n_y, n_rho * ez
+            best, nbx, nby, nbz = d, nx, ny, nz
     for a in range(3):
         normal[a] = rot[a, 0] * nbx + rot[a, 1] * nby + rot[a, 2] * nbz
     return best
