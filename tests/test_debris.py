@@ -109,3 +109,74 @@ def test_debris_spin_conserved_over_120_s():
     coarse, fine = spin(csm, 1 / 240, 10.0)[0], spin(csm, 1 / 480, 10.0)[0]
     assert coarse < 1e-3
     assert math.log2(coarse / fine) == pytest.approx(1.0, abs=0.1)
+
+
+def test_tumbling_box_and_panel_flips_as_eulers_equations_say():
+    # Reference: Euler's equations of a torque-free rigid body in its principal frame,
+    # I1 w1' = (I2 - I3) w2 w3 (and cyclic), integrated by scipy's DOP853. A spin about the
+    # intermediate axis is unstable: a 5 % perturbation flips it after ~59 s. The debris is
+    # a bus and a panel turned 30 deg off its axes (products of inertia: PyBullet's inertial
+    # frame is the principal one); PyBullet's first-order rotation update keeps angular
+    # momentum and energy to O(dt): 3e-4 and 5e-4 at 1/240 s over 80 s.
+    from scipy.integrate import solve_ivp
+
+    from bulletnet.debris import RigidDebris, make_debris, rotation_matrix
+
+    debris = make_debris("box_and_panel", (
+        Part("bus", "box", (2.0, 1.0, 1.5), 1000.0),
+        Part("panel", "box", (0.05, 4.0, 1.0), 100.0, (0.0, 2.6, 0.0), (0.0, 30.0, 0.0))))
+    moments, axes = debris.principal_moments, debris.principal_axes
+    assert np.abs(debris.inertia - np.diag(np.diag(debris.inertia))).max() > 1.0
+    w0 = np.array([0.01, 0.2, 0.0])  # [rad/s] principal frame: about the intermediate axis
+    state = np.concatenate([np.zeros(3), [0.0, 0.0, 0.0, 1.0], np.zeros(3), axes @ w0])
+    rigid = RigidDebris(debris, state.copy())
+    dt, duration = 1.0 / 240.0, 80.0
+    times = dt * np.arange(1, round(duration / dt) + 1)
+    ours = np.empty((times.size, 3))
+    for k in range(times.size):
+        rigid.step(np.zeros(6), dt, state)
+        ours[k] = axes.T @ rotation_matrix(state[3:7]).T @ state[10:13]  # principal frame
+    rigid.close()
+    i1, i2, i3 = moments
+
+    def euler(_t, w):
+        return [(i2 - i3) * w[1] * w[2] / i1, (i3 - i1) * w[2] * w[0] / i2,
+                (i1 - i2) * w[0] * w[1] / i3]
+
+    ref = solve_ivp(euler, (0.0, duration), w0, method="DOP853", rtol=1e-11, atol=1e-14,
+                    t_eval=times).y.T
+
+    def flips(w):
+        return times[np.nonzero(np.diff(np.sign(w[:, 1])))[0]]
+
+    assert flips(ref).size >= 1 and flips(ours).size == flips(ref).size
+    np.testing.assert_allclose(flips(ours), flips(ref), atol=0.1)
+    np.testing.assert_allclose(ours, ref, atol=5e-4)
+    rot = rotation_matrix(state[3:7])
+    l0, l1 = debris.inertia @ axes @ w0, rot @ debris.inertia @ rot.T @ state[10:13]
+    assert np.linalg.norm(l1 - l0) / np.linalg.norm(l0) < 1e-3
+    e0, e1 = 0.5 * (axes @ w0) @ l0, 0.5 * state[10:13] @ l1
+    assert abs(e1 - e0) / e0 < 1e-3
+
+
+def test_asset_parts_with_density_and_bad_parts(tmp_path):
+    # Reference: a box's volume is the product of its edges (mass = density x volume); bad
+    # parts are refused with a one-line error naming the part and the key.
+    from bulletnet.errors import ScenarioError
+
+    good = tmp_path / "good.toml"
+    good.write_text('[[parts]]\nshape = "box"\nsize = [1.0, 2.0, 3.0]\ndensity = 100.0\n'
+                    'position = [1.0, 0.0, 0.0]\n', encoding="utf-8")
+    debris = load_debris(str(good))
+    assert debris.mass == pytest.approx(600.0, rel=1e-15)
+    np.testing.assert_allclose(debris.center_of_mass, [1.0, 0.0, 0.0], atol=1e-12)
+    for body, message in (('shape = "box"\nmass = 1.0', "parts[0].size: expected three"),
+                          ('shape = "sphere"\nradius = 1.0', "give either mass"),
+                          ('shape = "cube"\nmass = 1.0', "parts[0].shape: expected one of"),
+                          ('shape = "sphere"\nradius = 1.0\nmass = 1.0\nsize = [1, 1, 1]',
+                           "unknown key 'size' for a sphere")):
+        bad = tmp_path / "bad.toml"
+        bad.write_text(f"[[parts]]\n{body}\n", encoding="utf-8")
+        load_debris.cache_clear()
+        with pytest.raises(ScenarioError, match=message.replace("[", r"\[")):
+            load_debris(str(bad))
