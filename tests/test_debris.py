@@ -180,3 +180,55 @@ def test_asset_parts_with_density_and_bad_parts(tmp_path):
         load_debris.cache_clear()
         with pytest.raises(ScenarioError, match=message.replace("[", r"\[")):
             load_debris(str(bad))
+
+
+def test_pybullet_compound_matches_the_parts_at_their_poses():
+    # Reference: the exact signed distance of the parts (checked against brute force in
+    # test_primitives): PyBullet's closest points from probe spheres outside the compound of
+    # boxes, a sphere, a cylinder and a cone's convex hull agree within the cone's 48-gon
+    # sagitta, r (1 - cos(pi / 48)) = 2.1 mm, and PyBullet's convex margin.
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
+
+    from bulletnet.contact import part_rows
+    from bulletnet.debris import collision_shape, make_debris
+    from bulletnet.forces.contact import debris_distance
+
+    debris = make_debris("mixed", (
+        Part("box", "box", (1.0, 3.0, 0.4), 10.0, (0.3, -0.2, 0.5), (20.0, -35.0, 50.0)),
+        Part("ball", "sphere", (0.8,), 5.0, (-2.0, 0.6, 0.1)),
+        Part("drum", "frustum", (-1.0, 1.5, 0.6, 0.6), 5.0, (0.2, 2.0, -0.3), (60.0, 10.0, 0.0)),
+        Part("cone", "frustum", (0.0, 2.0, 1.0, 0.0), 1.0, (0.0, -2.0, 0.0), (0.0, 0.0, 90.0))))
+    client = BulletClient(pybullet.DIRECT)
+    body = create_body(client, debris, [0.0, 0.0, 0.0], collision_shape=collision_shape(
+        client, debris))
+    probe_radius = 0.05
+    probe = client.createMultiBody(0.0, client.createCollisionShape(
+        pybullet.GEOM_SPHERE, radius=probe_radius))
+    rows, normal = part_rows(debris.parts), np.empty(3)
+    rng = np.random.default_rng(15)
+    checked = 0
+    for point in rng.uniform(-4.0, 4.0, size=(300, 3)):
+        exact = debris_distance(point, np.zeros(3), np.eye(3), rows, normal)
+        if not 0.1 < exact < 1.5:
+            continue
+        client.resetBasePositionAndOrientation(probe, point.tolist(), [0.0, 0.0, 0.0, 1.0])
+        hits = client.getClosestPoints(body, probe, 2.0)
+        assert hits, point
+        ours = min(h[8] for h in hits) + probe_radius
+        assert ours == pytest.approx(exact, abs=1.0 * (1 - math.cos(math.pi / 48)) + 2e-3)
+        checked += 1
+    client.disconnect()
+    assert checked > 50
+
+
+def test_envisat_asset_matches_its_published_envelope():
+    # Reference: ESA's in-orbit envelope, 26 x 10 x 5 m, and mass budget, 8211 kg at launch
+    # less 319 kg of fuel (assets/envisat.toml).
+    envisat = load_debris("envisat")
+    assert envisat.mass == pytest.approx(8211.0 - 319.0, rel=1e-12)
+    np.testing.assert_allclose(envisat.extents, [26.0, 10.0, 5.0], rtol=1e-12)
+    axes = envisat.principal_axes
+    np.testing.assert_allclose(axes @ np.diag(envisat.principal_moments) @ axes.T,
+                               envisat.inertia, rtol=0, atol=1e-9 * envisat.inertia.max())
+    assert np.linalg.det(axes) == pytest.approx(1.0)
