@@ -1,6 +1,7 @@
-"""Debris built from primitives, each a solid of uniform density at its own pose in the body
-frame: frustums along their part frame's y axis (a cylinder has equal radii, a cone a zero
-radius), boxes and spheres.
+"""Debris built from parts, each a solid of uniform density at its own pose in the body frame:
+frustums along their part frame's y axis (a cylinder has equal radii, a cone a zero radius),
+boxes, spheres and closed triangle meshes from files (:mod:`bulletnet.mesh`); or a whole
+debris from one mesh file.
 
 Mass, centre of mass and inertia are computed from the geometry with trimesh (polygonal
 solids of revolution of :data:`SECTIONS` sides, icospheres) and set explicitly on the
@@ -21,6 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ScenarioError
+from .mesh import MESH_SUFFIXES, load_mesh
+from .quiet import quiet_stdout
 
 ASSET_DIR = Path(__file__).resolve().parent.parent / "assets"
 """Folder of the shipped debris assets (``apollo_csm`` names ``assets/apollo_csm.toml``)."""
@@ -29,8 +32,8 @@ SECTIONS = 256
 """Sides of the polygons approximating circular sections (volume error ~ 1e-4 relative);
 spheres are icospheres with at least as many edges around a great circle."""
 
-SHAPES = ("frustum", "box", "sphere")
-"""Primitive part shapes."""
+SHAPES = ("frustum", "box", "sphere", "mesh")
+"""Part shapes."""
 
 PRINCIPAL_TOLERANCE = 1e-12
 """Products of inertia below this fraction of the largest moment are round-off of the
@@ -45,13 +48,15 @@ class Part:
     size: tuple[float, ...]
     """Dimensions in the part frame [m]: a frustum's (y_start, y_end, radius_start,
     radius_end) along its y axis, a box's edge lengths (x, y, z) about its centre, a sphere's
-    (radius,) about its centre."""
+    (radius,) about its centre; a mesh's none (its vertices are in the part frame)."""
     mass: float
     """Mass of the part [kg]."""
     position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """Origin of the part frame in the body frame [m]."""
     rotation: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """Rotation of the part frame in the body frame, a rotation vector [deg]."""
+    file: str = ""
+    """A mesh part's file (:data:`~bulletnet.mesh.MESH_SUFFIXES`, coordinates in [m])."""
 
     @property
     def matrix(self) -> np.ndarray:
@@ -70,6 +75,8 @@ class Part:
             return float(np.prod(self.size))
         if self.shape == "sphere":
             return 4.0 / 3.0 * math.pi * self.size[0] ** 3
+        if self.shape == "mesh":
+            return float(load_mesh(self.file).volume)
         y0, y1, r0, r1 = self.size
         return math.pi * (y1 - y0) * (r0 * r0 + r0 * r1 + r1 * r1) / 3.0
 
@@ -80,6 +87,8 @@ class Part:
             return float(np.linalg.norm(np.abs(c) + 0.5 * np.asarray(self.size)))
         if self.shape == "sphere":
             return float(np.linalg.norm(c)) + self.size[0]
+        if self.shape == "mesh":
+            return float(np.linalg.norm(load_mesh(self.file).vertices - c, axis=1).max())
         y0, y1, r0, r1 = self.size
         return math.hypot(max(r0, r1), max(abs(y0 - c[1]), abs(y1 - c[1]))) + float(
             np.hypot(c[0], c[2]))
@@ -109,13 +118,16 @@ class Debris:
         return matrix_quaternion(self.principal_axes)
 
 
-def part_mesh(part: Part, sections: int = SECTIONS):
-    """The part as a closed trimesh solid in the body frame [m]: a frustum is the convex hull
-    of its two end sections (circles as polygons of ``sections`` sides), a sphere an icosphere
-    with at least ``sections`` edges around a great circle."""
+def part_mesh(part: Part, sections: int = SECTIONS, frame: str = "body"):
+    """The part as a closed trimesh solid in the body frame (or, ``frame="part"``, its own)
+    [m]: a frustum is the convex hull of its two end sections (circles as polygons of
+    ``sections`` sides), a sphere an icosphere with at least ``sections`` edges around a
+    great circle, a mesh part its file's mesh."""
     import trimesh
 
-    if part.shape == "box":
+    if part.shape == "mesh":
+        mesh = load_mesh(part.file).copy()
+    elif part.shape == "box":
         mesh = trimesh.creation.box(extents=part.size)
     elif part.shape == "sphere":
         subdivisions = max(1, math.ceil(math.log2(sections / 5.0)))
@@ -131,6 +143,8 @@ def part_mesh(part: Part, sections: int = SECTIONS):
                 rings.append(np.stack([r * np.cos(angles), np.full(sections, y),
                                        r * np.sin(angles)], axis=1))
         mesh = trimesh.Trimesh(vertices=np.vstack(rings)).convex_hull
+    if frame == "part":
+        return mesh
     transform = np.eye(4)
     transform[:3, :3], transform[:3, 3] = part.matrix, part.position
     return mesh.apply_transform(transform)  # the identity leaves the mesh untouched
@@ -169,8 +183,9 @@ def principal_frame(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 SHAPE_KEYS = {"frustum": ("y_start", "y_end", "radius_start", "radius_end"),
-              "box": ("size",), "sphere": ("radius",)}
-"""The dimension keys of each shape in an asset's ``[[parts]]`` table (all in [m])."""
+              "box": ("size",), "sphere": ("radius",), "mesh": ("file",)}
+"""The dimension keys of each shape in an asset's ``[[parts]]`` table (in [m]; a mesh's file
+relative to the asset's folder)."""
 
 
 def _number(doc: dict, key: str, unit: str, where: str) -> float:
@@ -191,7 +206,7 @@ def _vector(doc: dict, key: str, unit: str, where: str,
     return tuple(float(x) for x in v)
 
 
-def _part(doc: dict, where: str) -> Part:
+def _part(doc: dict, where: str, folder: Path) -> Part:
     shape = doc.get("shape", "frustum")
     if shape not in SHAPES:
         raise ScenarioError(f"{where}.shape: expected one of {', '.join(SHAPES)}, got "
@@ -205,6 +220,11 @@ def _part(doc: dict, where: str) -> Part:
         size = _vector(doc, "size", "m", where, default=None)
         if min(size) <= 0:
             raise ScenarioError(f"{where}.size: edge lengths must be > 0 [m]")
+    elif shape == "mesh":
+        size = ()
+        if not isinstance(doc.get("file"), str):
+            raise ScenarioError(f"{where}.file: expected the path of a mesh file")
+        load_mesh(str(folder / doc["file"]))
     elif shape == "sphere":
         size = (_number(doc, "radius", "m", where),)
         if size[0] <= 0:
@@ -223,7 +243,8 @@ def _part(doc: dict, where: str) -> Part:
         raise ScenarioError(f"{where}.{key}: expected a positive number [{unit}]")
     part = Part(name=str(doc.get("name", "part")), shape=shape, size=size, mass=value,
                 position=_vector(doc, "position", "m", where),
-                rotation=_vector(doc, "rotation", "deg", where))
+                rotation=_vector(doc, "rotation", "deg", where),
+                file=str(folder / doc["file"]) if shape == "mesh" else "")
     if key == "density":
         part = dataclasses.replace(part, mass=value * part.volume)
     return part
@@ -240,10 +261,23 @@ def make_debris(name: str, parts: tuple[Part, ...]) -> Debris:
 
 
 @functools.lru_cache(maxsize=8)
-def load_debris(name_or_path: str) -> Debris:
+def load_debris(name_or_path: str, mass: float = 0.0, density: float = 0.0) -> Debris:
     """A debris asset by name (``apollo_csm``) or path, with its computed mass properties
-    (cached: treat the result as read-only)."""
+    (cached: treat the result as read-only). A mesh file (:data:`~bulletnet.mesh.MESH_SUFFIXES`)
+    is a debris of one part, of uniform density: its ``mass`` [kg] or ``density``
+    [kg/m^3] (one of them, > 0); an asset file has its parts' own."""
     path = Path(name_or_path)
+    if path.suffix.lower() in MESH_SUFFIXES:
+        if (mass > 0) == (density > 0):
+            raise ScenarioError(f"{path}: a mesh debris needs debris.mass [kg] or "
+                                "debris.density [kg/m^3] (one of them)")
+        part = Part(name=path.stem, shape="mesh", size=(), mass=mass, file=str(path))
+        if density > 0:
+            part = dataclasses.replace(part, mass=density * part.volume)
+        return make_debris(path.stem, (part,))
+    if mass > 0 or density > 0:
+        raise ScenarioError(f"{path}: debris.mass and debris.density apply to a mesh file "
+                            "only (an asset gives its parts' masses)")
     if not path.is_file():
         path = ASSET_DIR / f"{name_or_path}.toml"
     if not path.is_file():
@@ -255,7 +289,7 @@ def load_debris(name_or_path: str) -> Debris:
     raw = doc.get("parts")
     if not isinstance(raw, list) or not raw:
         raise ScenarioError(f"{path}: expected one or more [[parts]] tables")
-    parts = tuple(_part(p, f"{path}: parts[{k}]") for k, p in enumerate(raw))
+    parts = tuple(_part(p, f"{path}: parts[{k}]", path.parent) for k, p in enumerate(raw))
     return make_debris(str(doc.get("name", path.stem)), parts)
 
 
@@ -351,8 +385,9 @@ def visual_mesh(debris: Debris, sections: int = 48) -> tuple[np.ndarray, np.ndar
 def collision_shape(client, debris: Debris, sections: int = 48) -> int:
     """A PyBullet compound collision shape of the parts at their poses in the body frame:
     boxes, spheres and cylinders as PyBullet's own primitives, other frustums as convex hulls
-    (polygons of ``sections`` sides; PyBullet builds compounds of meshes from files only: OBJ
-    files in a temporary folder)."""
+    (polygons of ``sections`` sides), a convex mesh as its hull and a non-convex one as the
+    hulls of its convex decomposition by ``pybullet.vhacd`` (PyBullet builds compounds of
+    meshes from files only: OBJ files in a temporary folder)."""
     import tempfile
 
     import pybullet
@@ -369,7 +404,7 @@ def collision_shape(client, debris: Debris, sections: int = 48) -> int:
             elif part.shape == "sphere":
                 shapes.append(pybullet.GEOM_SPHERE)
                 radius = part.size[0]
-            elif part.size[2] == part.size[3]:  # a cylinder: PyBullet's is along its z axis
+            elif part.shape == "frustum" and part.size[2] == part.size[3]:  # a cylinder: PyBullet's is along its z axis
                 shapes.append(pybullet.GEOM_CYLINDER)
                 radius, length = part.size[2], part.size[1] - part.size[0]
                 position = position + part.matrix[:, 1] * 0.5 * (part.size[0] + part.size[1])
@@ -378,8 +413,13 @@ def collision_shape(client, debris: Debris, sections: int = 48) -> int:
             else:
                 shapes.append(pybullet.GEOM_MESH)
                 name = str(Path(folder) / f"part{k}.obj")
-                local = Part(part.name, part.shape, part.size, part.mass)  # in its own frame
-                part_mesh(local, sections).export(name)
+                mesh = part_mesh(part, sections, frame="part")
+                mesh.export(name)
+                if part.shape == "mesh" and not mesh.is_convex:
+                    # PyBullet collides with each mesh's convex hull: split it into convex
+                    # pieces first (the file then holds one hull per piece)
+                    with quiet_stdout():
+                        pybullet.vhacd(name, name, str(Path(folder) / "vhacd.log"))
             for key, value in zip(kw, (half, radius, length, name), strict=True):
                 kw[key].append(value)
             frames.append((position.tolist(), orientation.tolist()))

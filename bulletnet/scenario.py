@@ -168,8 +168,14 @@ class Friction:
 @dataclass(frozen=True)
 class DebrisScene:
     asset: str = _f("", "-")
-    """Debris asset: a name in assets/ (``apollo_csm``, ``envisat``) or a path to a .toml of
-    primitive parts (frustums, boxes, spheres at their poses); empty: no debris."""
+    """Debris asset: a name in assets/ (``apollo_csm``, ``envisat``), a path to a .toml of
+    parts (frustums, boxes, spheres, meshes at their poses) or to a mesh file (.stl, .obj,
+    .glb, .gltf, .ply; coordinates in [m]: give ``mass`` or ``density``); empty: no debris."""
+    mass: float = _f(0.0, "kg", ">=0")
+    """Mass of a debris given as a mesh file, spread evenly over its volume [kg]; 0: from
+    ``density`` (an asset .toml gives its parts' masses)."""
+    density: float = _f(0.0, "kg/m^3", ">=0")
+    """Density of a debris given as a mesh file [kg/m^3]; 0: from ``mass``."""
     position: tuple = _f((0.0, 0.0, 10.0), "m", "vec3")
     """World position of the debris' body-frame origin (where its asset puts it: the CSM's
     geometric centre, the centre of Envisat's bus) [m], (3,)."""

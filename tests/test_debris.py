@@ -190,7 +190,7 @@ def test_pybullet_compound_matches_the_parts_at_their_poses():
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
 
-    from bulletnet.contact import part_rows
+    from bulletnet.contact import debris_geometry
     from bulletnet.debris import collision_shape, make_debris
     from bulletnet.forces.contact import debris_distance
 
@@ -205,11 +205,11 @@ def test_pybullet_compound_matches_the_parts_at_their_poses():
     probe_radius = 0.05
     probe = client.createMultiBody(0.0, client.createCollisionShape(
         pybullet.GEOM_SPHERE, radius=probe_radius))
-    rows, normal = part_rows(debris.parts), np.empty(3)
+    (rows, mesh), normal = debris_geometry(debris.parts), np.empty(3)
     rng = np.random.default_rng(15)
     checked = 0
     for point in rng.uniform(-4.0, 4.0, size=(300, 3)):
-        exact = debris_distance(point, np.zeros(3), np.eye(3), rows, normal)
+        exact = debris_distance(point, np.zeros(3), np.eye(3), rows, mesh, normal)
         if not 0.1 < exact < 1.5:
             continue
         client.resetBasePositionAndOrientation(probe, point.tolist(), [0.0, 0.0, 0.0, 1.0])

@@ -64,12 +64,12 @@ def test_primitive_distance_and_normal_against_brute_force(part):
     lo, hi = mesh.bounds
     points = rng.uniform(lo - 0.5, hi + 0.5, size=(60, 3))
     d_ref, n_ref, clear = brute_force(mesh, points)
-    rows = contact.part_rows((part,))
+    rows, mesh = contact.debris_geometry((part,))
     n = np.empty(3)
     origin, rot = np.array([1.0, -2.0, 0.5]), bn.debris.rotation_matrix(
         bn.debris.rotation_quaternion([0.3, -0.4, 0.2]))  # a body frame off the world's
     for p, d, nr, ok in zip(points, d_ref, n_ref, clear, strict=True):
-        ours = debris_distance(origin + rot @ p, origin, rot, rows, n)
+        ours = debris_distance(origin + rot @ p, origin, rot, rows, mesh, n)
         assert ours == pytest.approx(d, abs=chord + 1e-12)
         if ok and abs(d) > 1e-3:
             # the facet's normal differs from the surface's by at most the facet angle
@@ -188,8 +188,8 @@ def test_envisat_tumble_is_recorded_on_its_surface(tmp_path, engine):
         turned = (Rotation.from_quat(d["orientation"][k]) * expected.inv()).magnitude()
         assert turned < 1e-6
         np.testing.assert_allclose(d["angular_velocity"][k], w, atol=1e-9)
-    rows, n = contact.part_rows(envisat.parts), np.empty(3)
+    (rows, mesh), n = contact.debris_geometry(envisat.parts), np.empty(3)
     rot = Rotation.from_quat(d["orientation"][-1]).as_matrix()
     world = d["position"][-1] + d["mesh_vertices"] @ rot.T
     for p in world[::7]:
-        assert abs(debris_distance(p, d["position"][-1], rot, rows, n)) < 1e-9
+        assert abs(debris_distance(p, d["position"][-1], rot, rows, mesh, n)) < 1e-9
