@@ -5,7 +5,11 @@ The query finds the exact closest point on the mesh through a bounding-volume hi
 its triangles (axis-aligned boxes, split at the median centroid along the longest axis,
 :data:`LEAF_SIZE` triangles a leaf) and takes the sign from the angle-weighted pseudo-normal
 of the closest feature (face, edge or vertex; Baerentzen and Aanaes 2005), which is exact for
-a closed, consistently oriented mesh: hence the checks of :func:`load_mesh`.
+a closed, consistently oriented mesh: hence the checks of :func:`load_mesh`. Chosen over a
+precomputed distance field by measurement (``benchmarks/mesh_query.py``, assets/README.md):
+1-2 us a query for a 960-triangle mesh, against a grid's 0.05-0.4 us that at 2 cm spacing
+still misses depths by millimetres and turns normals by up to 90 deg at sharp edges, and
+needs hundreds of MB dense.
 """
 
 from __future__ import annotations

@@ -344,6 +344,16 @@ def triangle_closest(x, y, z, tri):
     return cx, cy, cz, feature
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _box_gap2(box, x, y, z):
+    """Squared distance [m^2] from (x, y, z) [m] to the box (lowest x, y, z, highest x, y,
+    z) [m]; 0 inside."""
+    gx = max(box[0] - x, 0.0, x - box[3])
+    gy = max(box[1] - y, 0.0, y - box[4])
+    gz = max(box[2] - z, 0.0, z - box[5])
+    return gx * gx + gy * gy + gz * gz
+
+
 @nb.njit(cache=True, error_model="numpy")
 def mesh_distance(x, y, z, root, mesh):
     """Signed distance [m] from (x, y, z) [m] to the closed triangle mesh whose hierarchy
@@ -351,20 +361,20 @@ def mesh_distance(x, y, z, root, mesh):
     outward normal there: the exact closest point, found by descending the hierarchy past
     every box farther than the best so far; inside where the point lies behind the closest
     feature's pseudo-normal."""
-    boxes, tree = mesh.boxes, mesh.tree
+    tree = mesh.tree
     stack = np.empty(64, np.int64)
     stack[0], top = root, 1
     best, cx, cy, cz, feature, tri = np.inf, 0.0, 0.0, 0.0, 0, -1
     while top > 0:
         top -= 1
         node = stack[top]
-        gx = max(boxes[node, 0] - x, 0.0, x - boxes[node, 3])
-        gy = max(boxes[node, 1] - y, 0.0, y - boxes[node, 4])
-        gz = max(boxes[node, 2] - z, 0.0, z - boxes[node, 5])
-        if gx * gx + gy * gy + gz * gz >= best:
+        if _box_gap2(mesh.boxes[node], x, y, z) >= best:
             continue
-        if tree[node, 0] >= 0:
-            stack[top], stack[top + 1] = tree[node, 1], tree[node, 0]
+        left, right = tree[node, 0], tree[node, 1]
+        if left >= 0:  # the nearer child on top: it is searched first
+            if _box_gap2(mesh.boxes[left], x, y, z) < _box_gap2(mesh.boxes[right], x, y, z):
+                left, right = right, left
+            stack[top], stack[top + 1] = left, right
             top += 2
             continue
         for t in range(tree[node, 2], tree[node, 2] + tree[node, 3]):
