@@ -404,8 +404,8 @@ def collision_shape(client, debris: Debris, sections: int = 48) -> int:
             elif part.shape == "sphere":
                 shapes.append(pybullet.GEOM_SPHERE)
                 radius = part.size[0]
-            elif part.shape == "frustum" and part.size[2] == part.size[3]:  # a cylinder: PyBullet's is along its z axis
-                shapes.append(pybullet.GEOM_CYLINDER)
+            elif part.shape == "frustum" and part.size[2] == part.size[3]:
+                shapes.append(pybullet.GEOM_CYLINDER)  # a cylinder; PyBullet's is along z
                 radius, length = part.size[2], part.size[1] - part.size[0]
                 position = position + part.matrix[:, 1] * 0.5 * (part.size[0] + part.size[1])
                 z_to_y = rotation_quaternion([-0.5 * math.pi, 0.0, 0.0])
