@@ -92,6 +92,22 @@ def test_bad_meshes_are_refused_with_one_line(tmp_path):
         load_debris(write(tmp_path / "box.obj", box))
 
 
+def test_asset_mixes_mesh_parts_and_primitives(tmp_path, box_file):
+    # Reference: the union of the parts (the smallest distance) and the sum of their masses;
+    # the mesh part's file is found relative to the asset.
+    asset = tmp_path / "mixed.toml"
+    asset.write_text('[[parts]]\nshape = "mesh"\nfile = "box.stl"\nmass = 100.0\n'
+                     'position = [0.0, 0.0, 5.0]\n\n[[parts]]\nshape = "sphere"\n'
+                     'radius = 1.0\nmass = 50.0\n', encoding="utf-8")
+    debris = load_debris(str(asset))
+    assert debris.mass == 150.0
+    rows, mesh = contact.debris_geometry(debris.parts)
+    n = np.empty(3)
+    for p, expected in (((0.0, 0.0, 1.5), 0.5), ((0.0, 0.0, 2.5), -0.5), ((0.0, 3.0, 5.0), 2.0)):
+        d = debris_distance(np.array(p), np.zeros(3), np.eye(3), rows, mesh, n)
+        assert d == pytest.approx(expected, abs=1e-12)
+
+
 def test_scene_points_debris_asset_at_a_mesh_file(box_file):
     # Reference: uniform density, mass = density x volume (48 m^3); the centre of mass of a
     # box is its centre, its inertia m (b^2 + c^2) / 12 about x.

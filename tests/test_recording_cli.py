@@ -100,6 +100,8 @@ def test_divergence_is_typed_and_kept(tmp_path):
     (["compare", "missing_a.h5", "missing_b.h5"], "no such recording"),
     (["metrics", "pyproject.toml"], "not a readable HDF5"),
     (["params", "capture", "--set", "debris.asset='pyproject.toml'"], "[[parts]]"),
+    (["params", "capture", "--set", "debris.asset='assets/meshes/apollo_csm.obj'"],
+     "needs debris.mass"),
 ])
 def test_bad_input_one_line_exit_2(args, needle):
     import pathlib
