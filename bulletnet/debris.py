@@ -57,6 +57,16 @@ class Part:
     """Rotation of the part frame in the body frame, a rotation vector [deg]."""
     file: str = ""
     """A mesh part's file (:data:`~bulletnet.mesh.MESH_SUFFIXES`, coordinates in [m])."""
+    center_of_mass: tuple[float, float, float] | None = None
+    """Given centre of mass in the part frame [m] (with :attr:`inertia`: a mesh part for
+    contact only, which may be open); None: from the solid."""
+    inertia: tuple[tuple[float, ...], ...] | None = None
+    """Given inertia tensor about :attr:`center_of_mass`, part axes [kg m^2], (3, 3)."""
+
+    @property
+    def closed(self) -> bool:
+        """Whether the part is a solid (a mesh part with given mass properties need not be)."""
+        return self.inertia is None
 
     @property
     def matrix(self) -> np.ndarray:
@@ -76,7 +86,7 @@ class Part:
         if self.shape == "sphere":
             return 4.0 / 3.0 * math.pi * self.size[0] ** 3
         if self.shape == "mesh":
-            return float(load_mesh(self.file).volume)
+            return float(load_mesh(self.file, self.closed).volume)
         y0, y1, r0, r1 = self.size
         return math.pi * (y1 - y0) * (r0 * r0 + r0 * r1 + r1 * r1) / 3.0
 
@@ -88,7 +98,8 @@ class Part:
         if self.shape == "sphere":
             return float(np.linalg.norm(c)) + self.size[0]
         if self.shape == "mesh":
-            return float(np.linalg.norm(load_mesh(self.file).vertices - c, axis=1).max())
+            vertices = load_mesh(self.file, self.closed).vertices
+            return float(np.linalg.norm(vertices - c, axis=1).max())
         y0, y1, r0, r1 = self.size
         return math.hypot(max(r0, r1), max(abs(y0 - c[1]), abs(y1 - c[1]))) + float(
             np.hypot(c[0], c[2]))
@@ -126,7 +137,7 @@ def part_mesh(part: Part, sections: int = SECTIONS, frame: str = "body"):
     import trimesh
 
     if part.shape == "mesh":
-        mesh = load_mesh(part.file).copy()
+        mesh = load_mesh(part.file, part.closed).copy()
     elif part.shape == "box":
         mesh = trimesh.creation.box(extents=part.size)
     elif part.shape == "sphere":
@@ -152,12 +163,18 @@ def part_mesh(part: Part, sections: int = SECTIONS, frame: str = "body"):
 
 def mass_properties(parts: tuple[Part, ...]) -> tuple[float, np.ndarray, np.ndarray]:
     """(mass [kg], centre of mass (3,) [m], inertia about it (3, 3) [kg m^2]) of the parts in
-    the body frame, each of uniform density, combined with the parallel-axis theorem."""
+    the body frame, each of uniform density (or its given mass properties, turned into the
+    body frame), combined with the parallel-axis theorem."""
     masses, centres, inertias = [], [], []
     for part in parts:
+        masses.append(part.mass)
+        if not part.closed:
+            rot = part.matrix
+            centres.append(rot @ part.center_of_mass + part.position)
+            inertias.append(rot @ np.asarray(part.inertia) @ rot.T)
+            continue
         mesh = part_mesh(part)
         mesh.density = part.mass / mesh.volume
-        masses.append(part.mass)
         centres.append(np.asarray(mesh.center_mass))
         inertias.append(np.asarray(mesh.moment_inertia))  # about the part's own centre
     total = float(sum(masses))
@@ -183,9 +200,11 @@ def principal_frame(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 SHAPE_KEYS = {"frustum": ("y_start", "y_end", "radius_start", "radius_end"),
-              "box": ("size",), "sphere": ("radius",), "mesh": ("file",)}
-"""The dimension keys of each shape in an asset's ``[[parts]]`` table (in [m]; a mesh's file
-relative to the asset's folder)."""
+              "box": ("size",), "sphere": ("radius",),
+              "mesh": ("file", "center_of_mass", "inertia")}
+"""The keys of each shape in an asset's ``[[parts]]`` table: dimensions [m]; a mesh's file
+relative to the asset's folder, and for contact only its centre of mass [m] and inertia
+[kg m^2] in its part frame."""
 
 
 def _number(doc: dict, key: str, unit: str, where: str) -> float:
@@ -224,7 +243,8 @@ def _part(doc: dict, where: str, folder: Path) -> Part:
         size = ()
         if not isinstance(doc.get("file"), str):
             raise ScenarioError(f"{where}.file: expected the path of a mesh file")
-        load_mesh(str(folder / doc["file"]))
+        given = _given_mass_properties(doc, where)
+        load_mesh(str(folder / doc["file"]), closed=given is None)
     elif shape == "sphere":
         size = (_number(doc, "radius", "m", where),)
         if size[0] <= 0:
@@ -245,9 +265,34 @@ def _part(doc: dict, where: str, folder: Path) -> Part:
                 position=_vector(doc, "position", "m", where),
                 rotation=_vector(doc, "rotation", "deg", where),
                 file=str(folder / doc["file"]) if shape == "mesh" else "")
+    if shape == "mesh" and given is not None:
+        part = dataclasses.replace(part, center_of_mass=given[0], inertia=given[1])
     if key == "density":
         part = dataclasses.replace(part, mass=value * part.volume)
     return part
+
+
+def _given_mass_properties(doc: dict, where: str):
+    """A mesh part's given (centre of mass (3,) [m], inertia (3, 3) [kg m^2]), part frame,
+    or None if it has neither (then it must be a closed solid)."""
+    keys = [k for k in ("center_of_mass", "inertia") if k in doc]
+    if not keys:
+        return None
+    if len(keys) == 1 or "mass" not in doc:
+        raise ScenarioError(f"{where}: a mesh for contact only needs mass [kg], "
+                            "center_of_mass [m] and inertia [kg m^2] together")
+    com = _vector(doc, "center_of_mass", "m", where, default=None)
+    rows = doc["inertia"]
+    try:
+        inertia = np.array(rows, dtype=float)
+    except (TypeError, ValueError):
+        inertia = np.zeros(0)
+    if (inertia.shape != (3, 3) or not np.isfinite(inertia).all()
+            or not np.allclose(inertia, inertia.T, rtol=1e-12, atol=0.0)
+            or np.linalg.eigvalsh(inertia).min() <= 0.0):
+        raise ScenarioError(f"{where}.inertia: expected a symmetric, positive-definite 3 x 3 "
+                            f"table [kg m^2] (rows of 3 numbers), got {rows!r}")
+    return com, tuple(map(tuple, inertia.tolist()))
 
 
 def make_debris(name: str, parts: tuple[Part, ...]) -> Debris:
@@ -385,8 +430,8 @@ def visual_mesh(debris: Debris, sections: int = 48) -> tuple[np.ndarray, np.ndar
 def collision_shape(client, debris: Debris, sections: int = 48) -> int:
     """A PyBullet compound collision shape of the parts at their poses in the body frame:
     boxes, spheres and cylinders as PyBullet's own primitives, other frustums as convex hulls
-    (polygons of ``sections`` sides), a convex mesh as its hull and a non-convex one as the
-    hulls of its convex decomposition by ``pybullet.vhacd`` (PyBullet builds compounds of
+    (polygons of ``sections`` sides), a convex or open mesh as its hull and a non-convex solid
+    one as the hulls of its convex decomposition by ``pybullet.vhacd`` (PyBullet builds compounds of
     meshes from files only: OBJ files in a temporary folder)."""
     import tempfile
 
@@ -415,9 +460,10 @@ def collision_shape(client, debris: Debris, sections: int = 48) -> int:
                 name = str(Path(folder) / f"part{k}.obj")
                 mesh = part_mesh(part, sections, frame="part")
                 mesh.export(name)
-                if part.shape == "mesh" and not mesh.is_convex:
-                    # PyBullet collides with each mesh's convex hull: split it into convex
-                    # pieces first (the file then holds one hull per piece)
+                if part.shape == "mesh" and part.closed and not mesh.is_convex:
+                    # PyBullet collides with each mesh's convex hull: split a solid into
+                    # convex pieces first (the file then holds one hull per piece; an open
+                    # mesh keeps its hull)
                     with quiet_stdout():
                         pybullet.vhacd(name, name, str(Path(folder) / "vhacd.log"))
             for key, value in zip(kw, (half, radius, length, name), strict=True):

@@ -54,10 +54,11 @@ def no_meshes() -> MeshArrays:
 
 
 @functools.lru_cache(maxsize=16)
-def load_mesh(path: str):
-    """The closed triangle mesh of a file (``MESH_SUFFIXES``; coordinates in [m]), cached:
-    treat it as read-only. A mesh that is not watertight, not consistently wound or inverted
-    is refused with a one-line :class:`ScenarioError` saying what to do."""
+def load_mesh(path: str, closed: bool = True):
+    """The triangle mesh of a file (``MESH_SUFFIXES``; coordinates in [m]), cached: treat it
+    as read-only. It must be consistently wound and, if ``closed``, watertight and facing
+    outwards; else a one-line :class:`ScenarioError` says what to do. An open mesh (a sheet,
+    a shell with holes) has the side its faces' normals point to as its outside."""
     import trimesh
 
     p = Path(path)
@@ -68,15 +69,20 @@ def load_mesh(path: str):
     try:
         mesh = trimesh.load(p, force="mesh", process=True)
     except Exception as exc:  # trimesh raises many kinds on a bad file
-        raise ScenarioError(f"{p}: cannot read the mesh: {str(exc).splitlines()[0]}") from None
+        raise ScenarioError(f"{p}: cannot read the mesh: "
+                            f"{(str(exc).splitlines() or [type(exc).__name__])[0]}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise ScenarioError(f"{p}: holds no triangles")
-    if not mesh.is_watertight or not mesh.is_winding_consistent:
+    if not mesh.is_winding_consistent:
+        raise ScenarioError(f"{p}: the mesh's faces are not consistently wound (its outside "
+                            "is undefined): fix the winding (trimesh.repair.fix_winding, or "
+                            "MeshLab)")
+    if closed and not mesh.is_watertight:
         raise ScenarioError(
-            f"{p}: the mesh is not closed and consistently wound (its inside is undefined): "
-            "close its holes and fix its winding (trimesh.repair.fill_holes and fix_winding, "
-            "or MeshLab), or build the debris from primitives")
-    if mesh.volume <= 0.0:
+            f"{p}: the mesh is not closed (no inside, no volume): close its holes "
+            "(trimesh.repair.fill_holes, or MeshLab), give the part its mass, center_of_mass "
+            "and inertia to use it for contact only, or build the debris from primitives")
+    if closed and mesh.volume <= 0.0:
         raise ScenarioError(f"{p}: the mesh is inside out (volume {mesh.volume:.3g} m^3): "
                             "flip its faces (trimesh's Trimesh.invert)")
     return mesh

@@ -204,3 +204,38 @@ def test_capture_of_the_mesh_csm_matches_the_primitive_csm(tmp_path):
     assert count[1] > 10 and count[0] == pytest.approx(count[1], rel=0.1)
     load = [r.contacts["normal_force"].sum() * interval for r in (mesh, prims)]
     assert load[1] > 0.0 and load[0] == pytest.approx(load[1], rel=0.15)
+
+
+def test_open_mesh_for_contact_only_with_given_mass_properties(tmp_path):
+    # Reference: the given mass properties turned into the body frame (R c + t, R I R^T);
+    # an open mesh's outside is its normals' side: below and beside the cup (a box without
+    # its top face) as outside the closed-form box, and inside above its bottom. (Near the
+    # open rim the side follows the nearest wall: a node coming in through the opening
+    # would be taken as inside.)
+    import trimesh
+
+    box = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
+    top = np.nonzero(box.face_normals[:, 2] > 0.5)[0]
+    cup = trimesh.Trimesh(box.vertices, np.delete(box.faces, top, axis=0))
+    cup.export(tmp_path / "cup.ply")
+    inertia = [[3.0, 0.0, 0.0], [0.0, 4.0, 0.0], [0.0, 0.0, 5.0]]
+    asset = tmp_path / "cup.toml"
+    asset.write_text('[[parts]]\nshape = "mesh"\nfile = "cup.ply"\nmass = 10.0\n'
+                     'center_of_mass = [0.0, 0.0, -0.2]\nrotation = [0.0, 0.0, 90.0]\n'
+                     f'inertia = {inertia}\nposition = [1.0, 0.0, 0.0]\n', encoding="utf-8")
+    debris = load_debris(str(asset))
+    np.testing.assert_allclose(debris.center_of_mass, [1.0, 0.0, -0.2], atol=1e-12)
+    np.testing.assert_allclose(np.diag(debris.inertia), [4.0, 3.0, 5.0], atol=1e-12)
+    rows, mesh = contact.debris_geometry(debris.parts)
+    n = np.empty(3)
+    for p, expected in (((1.0, 0.0, -1.5), 0.5), ((3.5, 0.0, 0.0), 1.5), ((1.0, 0.0, -0.5), -0.5)):
+        d = debris_distance(np.array(p), np.zeros(3), np.eye(3), rows, mesh, n)
+        assert d == pytest.approx(expected, abs=1e-12)
+    with pytest.raises(ScenarioError, match="not closed"):
+        load_debris(str(tmp_path / "cup.ply"), 10.0)
+    asset.write_text('[[parts]]\nshape = "mesh"\nfile = "cup.ply"\nmass = 10.0\n'
+                     'inertia = [[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n'
+                     'center_of_mass = [0.0, 0.0, 0.0]\n', encoding="utf-8")
+    load_debris.cache_clear()
+    with pytest.raises(ScenarioError, match="positive-definite"):
+        load_debris(str(asset))
