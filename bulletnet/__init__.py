@@ -15,7 +15,7 @@ __version__ = "0.1.0"
 
 from . import kernel_cache, metrics  # noqa: F401 (kernel_cache first: it points numba's cache)
 from .builder import build_model, initial_state
-from .debris import Debris, load_debris
+from .debris import Debris, Part, load_debris, make_debris
 from .errors import BulletnetError, DivergenceError, RecordingError, ScenarioError
 from .hertz import contact_table
 from .model import NetModel, NodeKind
@@ -27,8 +27,8 @@ from .simulate import RunResult, run
 from .state import NetState
 
 __all__ = [
-    "BulletnetError", "Debris", "DivergenceError", "NetModel", "NetState", "NodeKind", "Recording",
-    "RecordingError", "RunResult", "Scenario", "ScenarioError", "__version__", "build_model",
-    "contact_table", "initial_state", "load_debris", "load_scenario", "loads_scenario", "metrics",
-    "open_recording", "run",
+    "BulletnetError", "Debris", "DivergenceError", "NetModel", "NetState", "NodeKind", "Part",
+    "Recording", "RecordingError", "RunResult", "Scenario", "ScenarioError", "__version__",
+    "build_model", "contact_table", "initial_state", "load_debris", "load_scenario",
+    "loads_scenario", "make_debris", "metrics", "open_recording", "run",
 ]

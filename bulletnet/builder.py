@@ -168,4 +168,6 @@ def initial_state(s: Scenario, model: NetModel) -> NetState:
 
 def scene_debris(s: Scenario):
     """The scene's :class:`~bulletnet.debris.Debris`, or None if it has none."""
-    return debris_module.load_debris(s.debris.asset) if s.debris.asset else None
+    if not s.debris.asset:
+        return None
+    return debris_module.load_debris(s.debris.asset, s.debris.mass, s.debris.density)

@@ -365,7 +365,7 @@ class ProgressBar:
 
 
 def cmd_params(args) -> int:
-    from .builder import build_model
+    from .builder import build_model, scene_debris
     from .hertz import contact_table
     from .model import NodeKind
 
@@ -409,6 +409,15 @@ def cmd_params(args) -> int:
         "nodes": kinds, "threads": threads, "contact": contact,
         "bullet_engine_contact_fit": pybullet_fit,
     }
+    debris = scene_debris(scene)
+    if debris is not None:
+        doc["debris"] = {
+            "name": debris.name, "parts": len(debris.parts), "mass_kg": debris.mass,
+            "center_of_mass_m": debris.center_of_mass.tolist(),
+            "inertia_kg_m2": debris.inertia.tolist(),
+            "principal_moments_kg_m2": debris.principal_moments.tolist(),
+            "principal_axes": debris.principal_axes.T.tolist(),
+            "extents_m": debris.extents.tolist()}
     if args.json:
         print(json.dumps(doc, indent=2))
         return 0
@@ -435,7 +444,20 @@ def cmd_params(args) -> int:
         for pair, v in pybullet_fit.items():
             print(f"{pair:<33}{v['k_c_rel_error']:>+9.1%} {v['c_c_rel_error']:>+9.1%} "
                   f"{v['mu_k_rel_error']:>+9.1%}")
+    if debris is not None:
+        d = doc["debris"]
+        print(f"\ndebris {d['name']}: {d['parts']} parts, mass {d['mass_kg']:.6g} kg, "
+              f"extents {_vec(d['extents_m'])} m (body frame)")
+        print(f"centre of mass {_vec(d['center_of_mass_m'])} m (body frame)")
+        print("inertia about it [kg m^2]: " + ", ".join(_vec(r) for r in d['inertia_kg_m2']))
+        print("principal moments [kg m^2] " + _vec(d["principal_moments_kg_m2"]) + " about "
+              + ", ".join(_vec(a, ".4f") for a in d["principal_axes"]))
     return 0
+
+
+def _vec(values, fmt: str = ".6g") -> str:
+    """A vector as text: (1, 2.5, 3)."""
+    return "(" + ", ".join(f"{v:{fmt}}" for v in values) + ")"
 
 
 def cmd_compare(args) -> int:

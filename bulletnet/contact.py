@@ -27,6 +27,11 @@ import numpy as np
 
 from .forces.bending import integrate_rotation
 from .forces.contact import (
+    BOX,
+    FRUSTUM,
+    MESH,
+    PART_COLUMNS,
+    SPHERE,
     debris_distance,
     friction_impulse,
     implicit_normal_step,
@@ -34,6 +39,7 @@ from .forces.contact import (
     quat_matrix,
 )
 from .hertz import BODY_CLASSES, contact_table
+from .mesh import MeshArrays, build, no_meshes
 from .model import NetModel, NodeKind
 from .scenario import Scenario
 
@@ -63,7 +69,11 @@ class ContactArrays(NamedTuple):
     params: np.ndarray
     """Friction slip [s/kg], Verlet skin [m], normal law (1: implicit, 0: exact), shape (3,)."""
     parts: np.ndarray
-    """Debris frustums: y_start, y_end, radius_start, radius_end [m], shape (K, 4)."""
+    """Debris parts, one row each (:data:`~bulletnet.forces.contact.PART_COLUMNS`: shape
+    code, pose in the body frame [-, m], dimensions [m]; :func:`debris_geometry`), shape
+    (K, 17)."""
+    mesh: MeshArrays
+    """Triangles and hierarchies of the debris' mesh parts, in their part frames [m]."""
     com_body: np.ndarray
     """Debris centre of mass in its body frame [m], shape (3,)."""
     bound: np.ndarray
@@ -135,6 +145,29 @@ def pair_tables(s: Scenario, model: NetModel) -> tuple[np.ndarray, ...]:
     return k, c, mu_s, mu_s / f.kinetic_ratio
 
 
+def debris_geometry(parts) -> tuple[np.ndarray, MeshArrays]:
+    """Debris parts (:class:`~bulletnet.debris.Part`) as the compiled contact loop reads
+    them: rows (K, :data:`~bulletnet.forces.contact.PART_COLUMNS`) of shape code, rotation
+    from the part frame to the body frame (row-major) [-], the part frame's origin [m] and
+    the dimensions [m] (a box's as half edge lengths, a mesh's root node), and the mesh
+    parts' :class:`~bulletnet.mesh.MeshArrays`."""
+    from .debris import part_mesh
+
+    meshes = [part for part in parts if part.shape == "mesh"]
+    mesh, roots = build([part_mesh(part, frame="part") for part in meshes])
+    root_of = {id(part): root for part, root in zip(meshes, roots, strict=True)}
+    rows = np.zeros((len(parts), PART_COLUMNS))
+    for k, part in enumerate(parts):
+        code, size = {"frustum": (FRUSTUM, part.size), "box": (BOX, 0.5 * np.asarray(part.size)),
+                      "sphere": (SPHERE, part.size),
+                      "mesh": (MESH, (root_of.get(id(part), 0),))}[part.shape]
+        rows[k, 0] = code
+        rows[k, 1:10] = part.matrix.ravel()
+        rows[k, 10:13] = part.position
+        rows[k, 13:13 + len(size)] = size
+    return rows, mesh
+
+
 def setup(s: Scenario, model: NetModel, debris=None, enabled: bool = True) -> ContactSetup:
     """The contact arrays of a scene: with ``debris`` (a :class:`~bulletnet.debris.Debris`)
     if the scene has one, self-contact if the scene asks for it; nothing with ``enabled``
@@ -149,19 +182,16 @@ def setup(s: Scenario, model: NetModel, debris=None, enabled: bool = True) -> Co
     else:
         k = c = mu_s = mu_k = np.zeros((5, 5))
     if has_debris:
-        parts = np.array([[p.y_start, p.y_end, p.radius_start, p.radius_end]
-                          for p in debris.parts])
+        parts, mesh = debris_geometry(debris.parts)
         com_body = np.asarray(debris.center_of_mass, dtype=float)
-        bound = max(math.hypot(max(p.radius_start, p.radius_end),
-                               max(abs(p.y_start - com_body[1]), abs(p.y_end - com_body[1])))
-                    for p in debris.parts) + float(np.hypot(com_body[0], com_body[2]))
+        bound = max(p.reach(com_body) for p in debris.parts)
     else:
-        parts, com_body, bound = np.zeros((0, 4)), np.zeros(3), 0.0
+        parts, mesh, com_body, bound = np.zeros((0, PART_COLUMNS)), no_meshes(), np.zeros(3), 0.0
     capacity = 16 * n if self_contact else 0
     arrays = ContactArrays(
         node_class=node_class, stiffness=k, damping=c, mu_static=mu_s, mu_kinetic=mu_k,
         params=np.array([s.friction.slip, s.contact.skin, float(s.contact.model == "implicit")]),
-        parts=parts, com_body=com_body, bound=np.array([bound]),
+        parts=parts, mesh=mesh, com_body=com_body, bound=np.array([bound]),
         com=np.zeros(3), quat=np.array([[0.0, 0.0, 0.0, 1.0]]), velocity=np.zeros(3),
         omega=np.zeros((1, 3)), impulse=np.zeros(6),
         node_impulse=np.zeros(n), self_impulse=np.zeros(n),
@@ -264,7 +294,7 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
         if _norm(r) - bound[0] - radius[i] > reach:
             predicted[i] = np.inf
             continue
-        d = debris_distance(p0, origin, rot, parts, n)
+        d = debris_distance(p0, origin, rot, parts, contact.mesh, n)
         s0 = d - radius[i]
         if s0 > reach:
             predicted[i] = np.inf

@@ -19,12 +19,12 @@ path                      shape         meaning
 /threads/shear            (T, P)        transverse (shear) force magnitude, 0 without bending [N]
 /nodes/orientation        (T, N, 4)     unit quaternions x, y, z, w [-] (bending only)
 /nodes/angular_velocity   (T, N, 3)     world frame [rad/s] (bending only)
-/debris/position          (T, 3)        world position of the body-frame origin (the
-                                        geometric centre) [m] (scenes with debris)
+/debris/position          (T, 3)        world position of the body-frame origin (as the
+                                        asset defines it) [m] (scenes with debris)
 /debris/orientation       (T, 4)        body-frame quaternion x, y, z, w [-]
 /debris/velocity          (T, 3)        velocity of the centre of mass [m/s]
 /debris/angular_velocity  (T, 3)        world frame [rad/s]
-/debris/mesh_vertices     (V, 3)        visual mesh, body frame [m]
+/debris/mesh_vertices     (V, 3)        visual mesh, every part at its pose, body frame [m]
 /debris/mesh_faces        (F, 3)        its triangles (vertex indices) [-]
 /contacts/count           (T,)          nodes that touched the debris in the interval
                                         ending at the frame [-] (scenes with contact)

@@ -168,13 +168,21 @@ class Friction:
 @dataclass(frozen=True)
 class DebrisScene:
     asset: str = _f("", "-")
-    """Debris asset: a name in assets/ (``apollo_csm``) or a path to a .toml of primitive
-    parts; empty: no debris."""
+    """Debris asset: a name in assets/ (``apollo_csm``, ``envisat``), a path to a .toml of
+    parts (frustums, boxes, spheres, meshes at their poses) or to a mesh file (.stl, .obj,
+    .glb, .gltf, .ply; coordinates in [m]: give ``mass`` or ``density``); empty: no debris."""
+    mass: float = _f(0.0, "kg", ">=0")
+    """Mass of a debris given as a mesh file, spread evenly over its volume [kg]; 0: from
+    ``density`` (an asset .toml gives its parts' masses)."""
+    density: float = _f(0.0, "kg/m^3", ">=0")
+    """Density of a debris given as a mesh file [kg/m^3]; 0: from ``mass``."""
     position: tuple = _f((0.0, 0.0, 10.0), "m", "vec3")
-    """World position of the debris' body-frame origin (its geometric centre) [m], (3,)."""
+    """World position of the debris' body-frame origin (where its asset puts it: the CSM's
+    geometric centre, the centre of Envisat's bus) [m], (3,)."""
     rotation: tuple = _f((0.0, 0.0, 0.0), "deg", "vec3")
     """Initial orientation as a rotation vector [deg], (3,): the axis is its direction and
-    the angle its length; zero keeps the body axes on the world axes (long axis along y)."""
+    the angle its length; zero keeps the body axes on the world axes (the CSM's long axis
+    along y)."""
     velocity: tuple = _f((0.0, 0.0, 0.0), "m/s", "vec3")
     """Initial velocity of the centre of mass [m/s], (3,)."""
     angular_velocity: tuple = _f((0.0, 0.0, 0.0), "deg/s", "vec3")

@@ -57,9 +57,10 @@ def test_pressed_sphere_settles_at_the_static_penetration(dt):
 
 def plane_debris() -> Debris:
     """A 100 m wide, 1 m thick disc: its cap at body y = 0 is a plane with normal +y."""
-    part = Part("disc", -1.0, 0.0, 50.0, 50.0, 1e6)
+    part = Part("disc", "frustum", (-1.0, 0.0, 50.0, 50.0), 1e6)
     return Debris(name="plane", parts=(part,), mass=1e6, center_of_mass=np.array([0, -0.5, 0]),
-                  inertia=np.eye(3) * 1e9, length=1.0, diameter=100.0)
+                  inertia=np.eye(3) * 1e9, principal_moments=np.full(3, 1e9),
+                  principal_axes=np.eye(3), extents=np.array([100.0, 1.0, 100.0]))
 
 
 def contact_world(**overrides):
@@ -166,17 +167,21 @@ def test_sphere_pair_rebound_conserves_momentum_and_restitution():
 
 def test_debris_distance_of_a_frustum():
     # Reference: geometry of the command-module frustum (y 2.3 -> 5.5, r 1.95 -> 0.42).
-    part = np.array([[2.3, 5.5, 1.95, 0.42]])
+    part, mesh = contact.debris_geometry((Part("cm", "frustum", (2.3, 5.5, 1.95, 0.42), 1.0),))
     rot, origin, n = np.eye(3), np.zeros(3), np.empty(3)
-    assert debris_distance(np.array([0.0, 6.5, 0.0]), origin, rot, part, n) == pytest.approx(1.0)
+
+    def distance(p):
+        return debris_distance(p, origin, rot, part, mesh, n)
+
+    assert distance(np.array([0.0, 6.5, 0.0])) == pytest.approx(1.0)
     np.testing.assert_allclose(n, [0, 1, 0], atol=1e-12)
-    assert debris_distance(np.array([0.0, 1.3, 1.0]), origin, rot, part, n) == pytest.approx(1.0)
+    assert distance(np.array([0.0, 1.3, 1.0])) == pytest.approx(1.0)
     # on the slanted side, 0.1 m out along its normal
     normal = np.array([3.2, 1.53, 0.0]) / math.hypot(3.2, 1.53)
     on_side = np.array([(1.95 + 0.42) / 2, (2.3 + 5.5) / 2, 0.0])
-    assert debris_distance(on_side + 0.1 * normal, origin, rot, part, n) == pytest.approx(0.1)
+    assert distance(on_side + 0.1 * normal) == pytest.approx(0.1)
     np.testing.assert_allclose(n, normal, atol=1e-12)
-    assert debris_distance(on_side - 0.1 * normal, origin, rot, part, n) == pytest.approx(-0.1)
+    assert distance(on_side - 0.1 * normal) == pytest.approx(-0.1)
 
 
 def test_debris_alone_keeps_its_spin_and_mass_properties(tmp_path):

@@ -100,6 +100,9 @@ def test_divergence_is_typed_and_kept(tmp_path):
     (["run", "deployment", "--record-rate", "2e6"], "record_rate"),
     (["compare", "missing_a.h5", "missing_b.h5"], "no such recording"),
     (["metrics", "pyproject.toml"], "not a readable HDF5"),
+    (["params", "capture", "--set", "debris.asset='pyproject.toml'"], "[[parts]]"),
+    (["params", "capture", "--set", "debris.asset='assets/meshes/apollo_csm.obj'"],
+     "needs debris.mass"),
 ])
 def test_bad_input_one_line_exit_2(args, needle):
     import pathlib
@@ -108,6 +111,18 @@ def test_bad_input_one_line_exit_2(args, needle):
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
     assert needle in proc.stderr
+
+
+def test_params_prints_the_debris_mass_properties():
+    # Reference: the asset's computed mass properties (bulletnet.debris, checked in
+    # test_debris), as the CLI reports them.
+    proc = cli("params", "capture_envisat", "--json")
+    assert proc.returncode == 0, proc.stderr
+    debris = json.loads(proc.stdout)["debris"]
+    envisat = bn.load_debris("envisat")
+    assert debris["mass_kg"] == envisat.mass
+    np.testing.assert_array_equal(debris["inertia_kg_m2"], envisat.inertia)
+    np.testing.assert_array_equal(debris["principal_axes"], envisat.principal_axes.T)
 
 
 def test_existing_output_needs_force(tmp_path):

@@ -20,16 +20,13 @@ recorded like the fast engine's.
 
 from __future__ import annotations
 
-import contextlib
-import os
-import sys
-
 import numpy as np
 
 from .. import integrators
 from ..contact import CLASS_OF_KIND
 from ..debris import body_origin, collision_shape, create_body, read_state
 from ..model import NodeKind
+from ..quiet import quiet_stdout
 from ..state import NetState
 from .base import Engine
 from .bullet_materials import fit
@@ -41,7 +38,7 @@ class BulletEngine(Engine):
 
     def __init__(self, scenario, model):
         super().__init__(scenario, model)
-        with _quiet_stdout():  # pybullet prints its build time and argv on import/connect
+        with quiet_stdout():  # pybullet prints its build time and argv on import/connect
             import pybullet
             from pybullet_utils.bullet_client import BulletClient
 
@@ -154,7 +151,7 @@ class BulletEngine(Engine):
             if not np.isfinite(state.position).all():
                 break
         if self.debris_body is not None:
-            read_state(c, self.debris_body, state.debris)
+            read_state(c, self.debris_body, state.debris, self.debris)
         self._impulse_time += interval
         state.time = t_end
 
@@ -182,21 +179,3 @@ class BulletEngine(Engine):
         if self.client is not None:
             self.client.disconnect()
             self.client = None
-
-
-@contextlib.contextmanager
-def _quiet_stdout():
-    """Silence file descriptors 1 and 2 (C-level prints) for the duration of the block."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = [os.dup(1), os.dup(2)]
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, 1)
-    os.dup2(devnull, 2)
-    try:
-        yield
-    finally:
-        os.dup2(saved[0], 1)
-        os.dup2(saved[1], 2)
-        for fd in (*saved, devnull):
-            os.close(fd)
