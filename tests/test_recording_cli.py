@@ -88,7 +88,7 @@ def test_divergence_is_typed_and_kept(tmp_path):
 
 
 @pytest.mark.parametrize(("args", "needle"), [
-    (["run", "nosuchscene"], "named scenes: cantilever, capture, deployment)"),
+    (["run", "nosuchscene"], "named scenes: cantilever, capture, capture_envisat, deployment)"),
     (["run", "sweep_example"], "a sweep file, not a scene; run it with `bulletnet sweep"),
     (["run", "deployment", "--set", "net.colour=3"], "unknown key"),
     (["run", "deployment", "--set", "net.nodes_per_side=1"], "nodes_per_side"),
