@@ -132,7 +132,9 @@ class Grid(NamedTuple):
     o_axis: np.ndarray
     """Their unit directions [-], shape (Q, 3)."""
     o_bend: np.ndarray
-    """Their bending parameters, as h_bend, shape (7, Q)."""
+    """Their bending parameters k_t, c_t, k_b, c_b (as h_bend), shape (4, Q)."""
+    o_rest_axis: np.ndarray
+    """Their rest axes in their first node's frame [-], shape (Q, 3)."""
     o_shear: np.ndarray
     """Their shear force magnitude [N], shape (Q,)."""
     bh: np.ndarray
@@ -157,6 +159,12 @@ class GridViews(NamedTuple):
     """Bending forces [N], shape (N, 3)."""
     other: np.ndarray
     """Forces of the other threads [N], shape (N, 3)."""
+    r: np.ndarray
+    """CG residual [kg m/s], shape (N, 3)."""
+    d: np.ndarray
+    """CG search direction [m/s], shape (N, 3)."""
+    ad: np.ndarray
+    """The system times d [kg m/s], shape (N, 3)."""
 
 
 def applies(model: NetModel) -> bool:
@@ -220,14 +228,17 @@ def build(model: NetModel | None) -> Grid:
         o_c=o[2].copy(), mass=mass.copy(), inv_mass=1.0 / mass, x=x, v=vel, dv=dv, base=base,
         bend=bend, other=other, th=th, tv=tv, eh=eh, ev=ev, blocks=blocks, wh=wh, wv=wv, cg=cg,
         block_inv=block_inv, o_tension=np.zeros(q), o_along=np.zeros(q), o_across=np.zeros(q),
-        o_axis=o_axis, o_bend=o[3:].copy(), o_shear=np.zeros(q), bh=bh, bv=bv)
+        o_axis=o_axis, o_bend=o[3:7].copy(), o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q),
+        bh=bh, bv=bv)
 
 
 def views(grid: Grid) -> GridViews:
-    """(N, 3) views of the grid's rows (see :class:`GridViews`)."""
+    """(N, 3) views of the grid's rows (see :class:`GridViews`), made once: a view made in a
+    kernel costs an atomic reference count increment and decrement at every step."""
     count = grid.count
     return GridViews(*(a[:, :count].T for a in (grid.x, grid.v, grid.dv, grid.bend,
-                                                grid.other)))
+                                                grid.other, grid.cg[0], grid.cg[2],
+                                                grid.cg[3])))
 
 
 def load(grid: Grid, position, velocity, base) -> None:
@@ -289,7 +300,7 @@ def _linearize_stencil(x, v, off, rest, k, c, tension_e, axis, blocks, row, dt, 
                                   if on else 0.0)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
 def _other_threads(grid, views, dt, linearize):
     """The other threads' forces [N] into ``other`` (pair-list kernels on the views); with
     ``linearize`` also their directions and implicit blocks."""
@@ -307,7 +318,7 @@ def _other_threads(grid, views, dt, linearize):
                      False, other, grid.o_tension)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def thread_forces(grid, views):
     """T e of every grid thread into th and tv, the other threads' forces [N] into other."""
     ns, n, x, v = U(grid.ns), U(grid.n), grid.x, grid.v
@@ -316,7 +327,7 @@ def thread_forces(grid, views):
     _other_threads(grid, views, 0.0, False)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
 def symplectic_step(grid, views, dt, bending_scale):
     """One symplectic Euler step of every node: :func:`thread_forces`, then dv = dt F / m with
     F = base + bending_scale bend + threads, v <- v + dv, x <- x + dt v, in one pass over the
@@ -367,7 +378,7 @@ def _block_stencil(rows, off, k, scale, blocks, row, axis, products, count, ns):
         products[2, col] = w2 if on else 0.0
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
 def _block_products(grid, rows, scale):
     """Every grid thread's block times its nodes' difference of ``rows`` (3, L), into wh and
     wv: the system's blocks (``scale`` 0) or, for the right-hand side, the blocks with
@@ -377,10 +388,10 @@ def _block_products(grid, rows, scale):
     _block_stencil(rows, ns, grid.v_k, scale, blocks, U(2), grid.ev, grid.wv, n - ns, ns)
 
 
-@nb.njit(cache=True, error_model="numpy")
-def _apply(grid, rows, out):
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
+def _apply(grid, rows, out, rows_view, out_view):
     """out = M rows + the threads' blocks applied to rows (the implicit system's product;
-    rows, out (3, L)), in the pair-list kernels' order."""
+    rows, out (3, L), and their (N, 3) views), in the pair-list kernels' order."""
     ns, n, count, mass = U(grid.ns), U(grid.n), U(grid.count), grid.mass
     wh, wv = grid.wh, grid.wv
     _block_products(grid, rows, 0.0)
@@ -390,8 +401,8 @@ def _apply(grid, rows, out):
                          + wh[a, i + ns]) + wv[a, i + ns]
         for i in range(n, count):
             out[a, i] = mass[i] * rows[a, i]
-    add_thread_blocks(rows[:, :count].T, grid.o_pairs, grid.o_along, grid.o_across,
-                      grid.o_axis, out[:, :count].T)
+    add_thread_blocks(rows_view, grid.o_pairs, grid.o_along, grid.o_across, grid.o_axis,
+                      out_view)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -415,7 +426,7 @@ def _store(rows, i, m):
     rows[6, i], rows[7, i], rows[8, i] = m[6], m[7], m[8]
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
 def _block_jacobi(grid):
     """Each node's 3 x 3 diagonal block of the implicit system, inverted, into block_inv."""
     ns, n, count, mass, inv = U(grid.ns), U(grid.n), U(grid.count), grid.mass, grid.block_inv
@@ -464,7 +475,7 @@ def _precondition(inv, r, z, count):
                 + inv[U(3) * a + U(2), i] * r[2, i]
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
 def implicit_step(grid, views, dt, tol, iterations):
     """One linearly implicit Euler step (:func:`bulletnet.integrators.implicit_increment`,
     the same arithmetic in the same order) on the rows: dv by preconditioned CG from its
@@ -490,16 +501,19 @@ def implicit_step(grid, views, dt, tol, iterations):
                 - wv[a, i + ns]
         for i in range(n, count):
             r[a, i] = dt * (base[a, i] + bend[a, i] + other[a, i])
-    add_thread_rhs(v[:, :count].T, grid.o_pairs, grid.o_k, grid.o_along, grid.o_across,
-                   grid.o_axis, dt, r[:, :count].T)
-    momentum = np.zeros(3)
-    for a in range(U(3)):
-        for i in range(count):
-            momentum[a] += r[a, i]
+    add_thread_rhs(views.velocity, grid.o_pairs, grid.o_k, grid.o_along, grid.o_across,
+                   grid.o_axis, dt, views.r)
+    m0 = m1 = m2 = 0.0  # the step's exact momentum change (internal forces cancel)
+    for i in range(count):
+        m0 += r[0, i]
+    for i in range(count):
+        m1 += r[1, i]
+    for i in range(count):
+        m2 += r[2, i]
     rhs_norm = np.sqrt(_dot(r, r, count))
     if rhs_norm != 0.0:
         _block_jacobi(grid)
-        _apply(grid, dv, ad)  # r <- rhs - A dv (warm start)
+        _apply(grid, dv, ad, views.dv, views.ad)  # r <- rhs - A dv (warm start)
         for a in range(U(3)):
             for i in range(count):
                 r[a, i] -= ad[a, i]
@@ -512,7 +526,7 @@ def implicit_step(grid, views, dt, tol, iterations):
         for _ in range(4 * grid.count):
             if np.sqrt(rr) <= tol * rhs_norm:
                 break
-            _apply(grid, d, ad)
+            _apply(grid, d, ad, views.d, views.ad)
             alpha = rz / _dot(d, ad, count)
             for a in range(U(3)):
                 for i in range(count):
@@ -531,17 +545,21 @@ def implicit_step(grid, views, dt, tol, iterations):
         total_mass = 0.0
         for i in range(count):
             total_mass += mass[i]
-            for a in range(U(3)):
-                momentum[a] -= mass[i] * dv[a, i]
-        for a in range(U(3)):
-            for i in range(count):
-                dv[a, i] += momentum[a] / total_mass
+            m0 -= mass[i] * dv[0, i]
+            m1 -= mass[i] * dv[1, i]
+            m2 -= mass[i] * dv[2, i]
+        for i in range(count):
+            dv[0, i] += m0 / total_mass
+        for i in range(count):
+            dv[1, i] += m1 / total_mass
+        for i in range(count):
+            dv[2, i] += m2 / total_mass
     else:
         dv[:] = 0.0
     _move(x, v, dv, dt, count)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
 def free_steps(grid, views, implicit, steps, dt, tol, iterations):
     """``steps`` steps of symplectic Euler (or, with ``implicit``, implicit Euler) of a net
     with no bending and no contact: the threads, gravity, loads and external forces only.
@@ -596,7 +614,7 @@ def _large_rotations(quat, omega, off, params, out, count, ns):
             omega[j, 2] - omega[t, 2], params[2, t], params[3, t])
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
 def bending(grid, views, quat, omega, torque):
     """The bending springs afresh (as :func:`~bulletnet.integrators.evaluate_bending`, in the
     pair-list order): forces [N] into the bend rows, torques [N m] into ``torque`` (N, 3)."""
@@ -620,5 +638,5 @@ def bending(grid, views, quat, omega, torque):
         for i in range(n, count):
             torque[i, a] = 0.0
     p = grid.o_bend
-    bending_forces(views.position, views.velocity, quat, omega, grid.o_pairs, p[4:].T, p[0],
-                   p[1], p[2], p[3], views.bend, torque, grid.o_shear)
+    bending_forces(views.position, views.velocity, quat, omega, grid.o_pairs,
+                   grid.o_rest_axis, p[0], p[1], p[2], p[3], views.bend, torque, grid.o_shear)
