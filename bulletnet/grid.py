@@ -39,9 +39,7 @@ from .forces.axial import (
 from .forces.bending import (
     angular_torque,
     bending_forces,
-    relative_quaternion,
     relative_rotation_vector,
-    small_rotation_vector,
     transverse_force,
 )
 from .model import NetModel
@@ -96,6 +94,10 @@ class Grid(NamedTuple):
     """Positions [m], shape (3, L)."""
     v: np.ndarray
     """Velocities [m/s], shape (3, L)."""
+    q: np.ndarray
+    """Orientations, quaternions x, y, z, w [-], shape (4, L) (bending only)."""
+    w: np.ndarray
+    """Angular velocities [rad/s], shape (3, L) (bending only)."""
     dv: np.ndarray
     """Velocity increment of the last step [m/s], shape (3, L); CG's warm start."""
     base: np.ndarray
@@ -139,10 +141,9 @@ class Grid(NamedTuple):
     """Their shear force magnitude [N], shape (Q,)."""
     bh: np.ndarray
     """Bending of thread h(i) at column Ns + i: force on node i [N] (3), r x that force
-    [N m] (3), torque on node i [N m] (3), 1 where its relative rotation is too large for the
-    series (:func:`~bulletnet.forces.bending.small_rotation_vector`), shape (10, Ns + Ns^2)."""
+    [N m] (3), torque on node i [N m] (3), shape (9, Ns + Ns^2)."""
     bv: np.ndarray
-    """The same for thread v(i), shape (10, Ns + Ns^2)."""
+    """The same for thread v(i), shape (9, Ns + Ns^2)."""
 
 
 class GridViews(NamedTuple):
@@ -165,6 +166,10 @@ class GridViews(NamedTuple):
     """CG search direction [m/s], shape (N, 3)."""
     ad: np.ndarray
     """The system times d [kg m/s], shape (N, 3)."""
+    quat: np.ndarray
+    """Orientations [-], shape (N, 4)."""
+    omega: np.ndarray
+    """Angular velocities [rad/s], shape (N, 3)."""
 
 
 def applies(model: NetModel) -> bool:
@@ -218,15 +223,17 @@ def build(model: NetModel | None) -> Grid:
     q = o.shape[1]
     length, wide = _rows(count), ns + n
     (x, vel, dv, base, bend, other, th, tv, eh, ev, blocks, wh, wv, cg, block_inv, o_axis,
-     bh, bv) = _carve([(3, length)] * 6 + [(3, wide)] * 4
-                      + [(4, wide), (3, wide), (3, wide), (4, 3, length), (9, length), (q, 3),
-                         (10, wide), (10, wide)])
+     bh, bv, quat, omega) = _carve(
+        [(3, length)] * 6 + [(3, wide)] * 4
+        + [(4, wide), (3, wide), (3, wide), (4, 3, length), (9, length), (q, 3), (9, wide),
+           (9, wide), (4, length), (3, length)])
     return Grid(
         ns=ns, n=n, count=count, h_rest=h[0].copy(), h_k=h[1].copy(), h_c=h[2].copy(),
         v_rest=v[0].copy(), v_k=v[1].copy(), v_c=v[2].copy(), h_bend=h[3:].copy(),
         v_bend=v[3:].copy(), o_pairs=pairs[inner:].copy(), o_rest=o[0].copy(), o_k=o[1].copy(),
-        o_c=o[2].copy(), mass=mass.copy(), inv_mass=1.0 / mass, x=x, v=vel, dv=dv, base=base,
-        bend=bend, other=other, th=th, tv=tv, eh=eh, ev=ev, blocks=blocks, wh=wh, wv=wv, cg=cg,
+        o_c=o[2].copy(), mass=mass.copy(), inv_mass=1.0 / mass, x=x, v=vel, q=quat, w=omega,
+        dv=dv, base=base, bend=bend, other=other, th=th, tv=tv, eh=eh, ev=ev, blocks=blocks,
+        wh=wh, wv=wv, cg=cg,
         block_inv=block_inv, o_tension=np.zeros(q), o_along=np.zeros(q), o_across=np.zeros(q),
         o_axis=o_axis, o_bend=o[3:7].copy(), o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q),
         bh=bh, bv=bv)
@@ -238,23 +245,30 @@ def views(grid: Grid) -> GridViews:
     count = grid.count
     return GridViews(*(a[:, :count].T for a in (grid.x, grid.v, grid.dv, grid.bend,
                                                 grid.other, grid.cg[0], grid.cg[2],
-                                                grid.cg[3])))
+                                                grid.cg[3], grid.q, grid.w)))
 
 
-def load(grid: Grid, position, velocity, base) -> None:
-    """Copy a state's positions [m] and velocities [m/s] and the constant forces ``base``
-    [N], each (N, 3), into the grid's rows."""
+def load(grid: Grid, state, base) -> None:
+    """Copy a :class:`~bulletnet.state.NetState`'s nodes (positions [m], velocities [m/s],
+    and orientations and angular velocities [rad/s] if it has them) and the constant forces
+    ``base`` [N] (N, 3) into the grid's rows."""
     count = grid.count
-    grid.x[:, :count] = position.T
-    grid.v[:, :count] = velocity.T
+    grid.x[:, :count] = state.position.T
+    grid.v[:, :count] = state.velocity.T
     grid.base[:, :count] = base.T
+    if state.oriented:
+        grid.q[:, :count] = state.orientation.T
+        grid.w[:, :count] = state.angular_velocity.T
 
 
-def store(grid: Grid, position, velocity) -> None:
-    """Copy the grid's positions [m] and velocities [m/s] back into (N, 3) arrays."""
+def store(grid: Grid, state) -> None:
+    """Copy the grid's nodes back into a :class:`~bulletnet.state.NetState`."""
     count = grid.count
-    position[:] = grid.x[:, :count].T
-    velocity[:] = grid.v[:, :count].T
+    state.position[:] = grid.x[:, :count].T
+    state.velocity[:] = grid.v[:, :count].T
+    if state.oriented:
+        state.orientation[:] = grid.q[:, :count].T
+        state.angular_velocity[:] = grid.w[:, :count].T
 
 
 U = nb.uint64
@@ -572,58 +586,38 @@ def free_steps(grid, views, implicit, steps, dt, tol, iterations):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _bending_stencil(x, v, quat, omega, off, params, out, count, ns):
+def _bending_stencil(x, v, q, w, off, params, out, count, ns):
     """The bending springs of threads t < ``count`` from node t to node t + ``off``
     (:func:`~bulletnet.forces.bending.bending_forces`' arithmetic) into column Ns + t of
-    ``out`` (see :attr:`Grid.bh`); the rotation vector by its series, flagged in out[9]
-    where the series does not apply (:func:`_large_rotations` redoes those). x [m], v [m/s]
-    are (3, L) rows, quat (N, 4) and omega [rad/s] (N, 3) the nodes' rotations."""
+    ``out`` (see :attr:`Grid.bh`), from the rows x [m], v [m/s], q [-] and w [rad/s]. Two
+    loops: LLVM vectorizes each, not the two fused."""
     for t in range(count):
         j, col = t + off, t + ns
         rx, ry, rz = x[0, j] - x[0, t], x[1, j] - x[1, t], x[2, j] - x[2, t]
         fx, fy, fz = transverse_force(
-            rx, ry, rz, v[0, j] - v[0, t], v[1, j] - v[1, t], v[2, j] - v[2, t],
-            quat[t, 0], quat[t, 1], quat[t, 2], quat[t, 3], omega[t, 0], omega[t, 1],
-            omega[t, 2], params[4, t], params[5, t], params[6, t], params[0, t], params[1, t])
-        qx, qy, qz, qw, s = relative_quaternion(quat[t, 0], quat[t, 1], quat[t, 2], quat[t, 3],
-                                                quat[j, 0], quat[j, 1], quat[j, 2], quat[j, 3])
-        px, py, pz = small_rotation_vector(qx, qy, qz, qw, s)
-        tx, ty, tz = angular_torque(px, py, pz, omega[j, 0] - omega[t, 0],
-                                    omega[j, 1] - omega[t, 1], omega[j, 2] - omega[t, 2],
-                                    params[2, t], params[3, t])
+            rx, ry, rz, v[0, j] - v[0, t], v[1, j] - v[1, t], v[2, j] - v[2, t], q[0, t],
+            q[1, t], q[2, t], q[3, t], w[0, t], w[1, t], w[2, t], params[4, t], params[5, t],
+            params[6, t], params[0, t], params[1, t])
         out[0, col], out[1, col], out[2, col] = fx, fy, fz
         out[3, col], out[4, col], out[5, col] = ry * fz - rz * fy, rz * fx - rx * fz, \
             rx * fy - ry * fx
-        out[6, col], out[7, col], out[8, col] = tx, ty, tz
-        out[9, col] = 0.0 if s < 1e-2 * qw else 1.0
-
-
-@nb.njit(cache=True, error_model="numpy", inline="always")
-def _large_rotations(quat, omega, off, params, out, count, ns):
-    """Redo the angular springs of the threads :func:`_bending_stencil` flagged, with the
-    exact rotation vector."""
     for t in range(count):
-        col = t + ns
-        if out[9, col] == 0.0:
-            continue
-        j = t + off
-        px, py, pz = relative_rotation_vector(quat[t, 0], quat[t, 1], quat[t, 2], quat[t, 3],
-                                              quat[j, 0], quat[j, 1], quat[j, 2], quat[j, 3])
+        j, col = t + off, t + ns
+        px, py, pz = relative_rotation_vector(q[0, t], q[1, t], q[2, t], q[3, t], q[0, j],
+                                              q[1, j], q[2, j], q[3, j])
         out[6, col], out[7, col], out[8, col] = angular_torque(
-            px, py, pz, omega[j, 0] - omega[t, 0], omega[j, 1] - omega[t, 1],
-            omega[j, 2] - omega[t, 2], params[2, t], params[3, t])
+            px, py, pz, w[0, j] - w[0, t], w[1, j] - w[1, t], w[2, j] - w[2, t], params[2, t],
+            params[3, t])
 
 
 @nb.njit(cache=True, error_model="numpy", _nrt=False)
-def bending(grid, views, quat, omega, torque):
+def bending(grid, views, torque):
     """The bending springs afresh (as :func:`~bulletnet.integrators.evaluate_bending`, in the
     pair-list order): forces [N] into the bend rows, torques [N m] into ``torque`` (N, 3)."""
     ns, n, count = U(grid.ns), U(grid.n), U(grid.count)
-    x, v, bh, bv, bend = grid.x, grid.v, grid.bh, grid.bv, grid.bend
-    _bending_stencil(x, v, quat, omega, ONE, grid.h_bend, bh, n - ONE, ns)
-    _bending_stencil(x, v, quat, omega, ns, grid.v_bend, bv, n - ns, ns)
-    _large_rotations(quat, omega, ONE, grid.h_bend, bh, n - ONE, ns)
-    _large_rotations(quat, omega, ns, grid.v_bend, bv, n - ns, ns)
+    x, v, q, w, bh, bv, bend = grid.x, grid.v, grid.q, grid.w, grid.bh, grid.bv, grid.bend
+    _bending_stencil(x, v, q, w, ONE, grid.h_bend, bh, n - ONE, ns)
+    _bending_stencil(x, v, q, w, ns, grid.v_bend, bv, n - ns, ns)
     for a in range(U(3)):
         for i in range(n):
             bend[a, i] = (((0.0 - bv[a, i]) - bh[a, i + ns - ONE]) + bh[a, i + ns]) \
@@ -638,5 +632,5 @@ def bending(grid, views, quat, omega, torque):
         for i in range(n, count):
             torque[i, a] = 0.0
     p = grid.o_bend
-    bending_forces(views.position, views.velocity, quat, omega, grid.o_pairs,
+    bending_forces(views.position, views.velocity, views.quat, views.omega, grid.o_pairs,
                    grid.o_rest_axis, p[0], p[1], p[2], p[3], views.bend, torque, grid.o_shear)

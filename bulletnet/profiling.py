@@ -95,7 +95,7 @@ def _force_loop(steps, bending, every, pos, vel, quat, omega, model, work, gravi
         weight = bending_weight(bending, every, work)
         if grid.n:
             if weight > 0.0:
-                grid_kernels.bending(grid, views, quat, omega, work.torque)
+                grid_kernels.bending(grid, views, work.torque)
             grid_kernels.thread_forces(grid, views)
         else:
             external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,

@@ -57,8 +57,10 @@ class FastEngine(Engine):
         on_grid = self.grid.n > 0
         if on_grid:
             base = self.model.mass[:, None] * self.gravity + self.model.load + self.external
-            grid_kernels.load(self.grid, state.position, state.velocity, base)
+            grid_kernels.load(self.grid, state, base)
             pos, vel = self.views.position, self.views.velocity
+            if self.bending:
+                quat, omega = self.views.quat, self.views.omega
         else:
             pos, vel = state.position, state.velocity
         done = 0
@@ -83,7 +85,7 @@ class FastEngine(Engine):
             if not np.isfinite(pos).all():
                 break
         if on_grid:
-            grid_kernels.store(self.grid, state.position, state.velocity)
+            grid_kernels.store(self.grid, state)
         self.steps += done
         state.time = t_end
 
