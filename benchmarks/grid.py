@@ -7,6 +7,7 @@ position RMSE against converged fine-step runs (symplectic Euler at 2.5e-7 s, wi
 without bending; cached in OUT). Writes ``OUT/grid.json`` and ``OUT/grid.png``.
 
 Usage: python benchmarks/grid.py [OUT] [--repeats N] [--capture-duration S]
+       python benchmarks/grid.py --plot OUT/grid.json   (redraw the chart)
 """
 
 from __future__ import annotations
@@ -14,6 +15,9 @@ from __future__ import annotations
 import json
 import platform
 import statistics
+import sys
+import time
+from pathlib import Path
 
 from common import errors, output_dir, parser, timed
 
@@ -41,6 +45,31 @@ def fine(base, out, bending: bool):
         timed(base.with_overrides({"simulation.integrator": "symplectic_euler",
                                    "simulation.dt": 2.5e-7, "bending.enabled": bending}), path)
     return bn.open_recording(path)
+
+
+def sqrt_division_bound(threads: int, repeats: int = 200000) -> float:
+    """The machine's throughput bound of a thread's unavoidable arithmetic: one square root
+    and one reciprocal per thread, over ``threads`` contiguous values, vectorized as the
+    stencils are [ns per thread] (best of 7)."""
+    import numba as nb
+    import numpy as np
+
+    @nb.njit(error_model="numpy")
+    def kernel(x, y, z, out, reps):
+        for _ in range(reps):
+            for i in range(x.shape[0]):
+                length = np.sqrt(x[i] * x[i] + y[i] * y[i] + z[i] * z[i])
+                out[i] = 1.0 / length + length
+
+    rng = np.random.default_rng(0)
+    x, y, z, out = (rng.random(threads) + 0.5 for _ in range(4))
+    kernel(x, y, z, out, 10)
+    best = float("inf")
+    for _ in range(7):
+        start = time.perf_counter()
+        kernel(x, y, z, out, repeats)
+        best = min(best, (time.perf_counter() - start) / repeats / threads)
+    return 1e9 * best
 
 
 def interleaved(scenes: dict, out, repeats: int) -> dict:
@@ -120,6 +149,14 @@ def main() -> None:
         print(f"Ns {ns}: {scaling[-1]['us_per_step']:.2f} us/step, "
               f"{scaling[-1]['ns_per_node_step']:.2f} ns per node-step")
     doc["scaling_symplectic_grid"] = scaling
+    threads = 2 * 11 * 10 + 4  # the Ns = 11 net
+    bound = sqrt_division_bound(threads)
+    doc["sqrt_division_bound"] = {
+        "threads": threads, "ns_per_thread": bound,
+        "us_per_step": 1e-3 * bound * threads,
+        "note": "sqrt + reciprocal per thread, vectorized: the floor of the thread stencils"}
+    print(f"sqrt/division bound: {bound:.3f} ns per thread, "
+          f"{1e-3 * bound * threads:.3f} us a step of the Ns = 11 net")
     (out / "grid.json").write_text(json.dumps(doc, indent=2))
     plot(doc, out / "grid.png")
 
@@ -146,6 +183,9 @@ def plot(doc: dict, path) -> None:
     rows = doc["scaling_symplectic_grid"]
     b.plot([r["nodes"] for r in rows], [r["ns_per_node_step"] for r in rows], "o-")
     b.set_xscale("log")
+    b.minorticks_off()
+    b.set_xticks([r["nodes"] for r in rows], [f"{r['nodes']}\n(Ns {r['nodes_per_side']})"
+                                               for r in rows])
     b.set_xlabel("nodes N [-]")
     b.set_ylabel("wall per node and step [ns]")
     b.set_title("grid path, symplectic Euler")
@@ -155,4 +195,8 @@ def plot(doc: dict, path) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    if len(sys.argv) == 3 and sys.argv[1] == "--plot":  # redraw from a JSON it wrote
+        doc_path = Path(sys.argv[2])
+        plot(json.loads(doc_path.read_text()), doc_path.with_suffix(".png"))
+    else:
+        main()

@@ -279,18 +279,31 @@ ONE = U(1)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
+def _row_tension(x, v, t, j, rest, k, c):
+    """:func:`~bulletnet.forces.axial.tension_law` of thread t, from node t to node j of the
+    (3, L) rows x [m] and v [m/s]: (T [N], ex, ey, ez, l [m])."""
+    return tension_law(x[0, j] - x[0, t], x[1, j] - x[1, t], x[2, j] - x[2, t],
+                       v[0, j] - v[0, t], v[1, j] - v[1, t], v[2, j] - v[2, t], rest[t], k[t],
+                       c[t], False)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _store_tension(tension_e, col, tension, ex, ey, ez):
+    """Column ``col`` of ``tension_e`` <- T e [N] (zero for a slack thread, whose direction
+    may not be finite)."""
+    on = tension != 0.0
+    tension_e[0, col] = tension * ex if on else 0.0
+    tension_e[1, col] = tension * ey if on else 0.0
+    tension_e[2, col] = tension * ez if on else 0.0
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _tension_stencil(x, v, off, rest, k, c, tension_e, count, ns):
     """Eq. 3 for threads t < ``count`` from node t to node t + ``off``: T e [N] into
     column Ns + t of ``tension_e`` (3, Ns + Ns^2); x [m] and v [m/s] are (3, L) rows."""
     for t in range(count):
-        j = t + off
-        tension, ex, ey, ez, _ = tension_law(
-            x[0, j] - x[0, t], x[1, j] - x[1, t], x[2, j] - x[2, t], v[0, j] - v[0, t],
-            v[1, j] - v[1, t], v[2, j] - v[2, t], rest[t], k[t], c[t], False)
-        on = tension != 0.0
-        tension_e[0, t + ns] = tension * ex if on else 0.0
-        tension_e[1, t + ns] = tension * ey if on else 0.0
-        tension_e[2, t + ns] = tension * ez if on else 0.0
+        tension, ex, ey, ez, _ = _row_tension(x, v, t, t + off, rest, k, c)
+        _store_tension(tension_e, t + ns, tension, ex, ey, ez)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -299,15 +312,10 @@ def _linearize_stencil(x, v, off, rest, k, c, tension_e, axis, blocks, row, dt, 
     along and across [kg] into blocks[row], blocks[row + 1] (see
     :func:`~bulletnet.forces.axial.axial_linearization`)."""
     for t in range(count):
-        j = t + off
-        tension, ex, ey, ez, length = tension_law(
-            x[0, j] - x[0, t], x[1, j] - x[1, t], x[2, j] - x[2, t], v[0, j] - v[0, t],
-            v[1, j] - v[1, t], v[2, j] - v[2, t], rest[t], k[t], c[t], False)
-        on = tension != 0.0
+        tension, ex, ey, ez, length = _row_tension(x, v, t, t + off, rest, k, c)
         col = t + ns
-        tension_e[0, col] = tension * ex if on else 0.0
-        tension_e[1, col] = tension * ey if on else 0.0
-        tension_e[2, col] = tension * ez if on else 0.0
+        on = tension != 0.0
+        _store_tension(tension_e, col, tension, ex, ey, ez)
         axis[0, col], axis[1, col], axis[2, col] = ex, ey, ez
         blocks[row, col] = dt * c[t] + dt * dt * k[t] if on else 0.0
         blocks[row + ONE, col] = (dt * dt * k[t] * max(length - rest[t], 0.0) / length
