@@ -279,6 +279,16 @@ ONE = U(1)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
+def _neighbours(start, h, v, a, i, ns, sign):
+    """``start`` plus component a of node i's four grid-thread entries in the pair-list
+    kernels' order and signs, - v(i - Ns) - h(i - 1) + h(i) + v(i) (all four negated with
+    ``sign`` -1); h and v hold thread t at column Ns + t. (x - (-w) is x + w exactly, so one
+    order serves both signs bit for bit.)"""
+    return (((start - sign * v[a, i]) - sign * h[a, i + ns - ONE]) + sign * h[a, i + ns]) \
+        + sign * v[a, i + ns]
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _row_tension(x, v, t, j, rest, k, c):
     """:func:`~bulletnet.forces.axial.tension_law` of thread t, from node t to node j of the
     (3, L) rows x [m] and v [m/s]: (T [N], ex, ey, ez, l [m])."""
@@ -362,8 +372,8 @@ def symplectic_step(grid, views, dt, bending_scale):
     # runtime checks and vectorizes both (one pass writing three rows it does not)
     for a in range(U(3)):
         for i in range(n):
-            f = ((((base[a, i] + bending_scale * bend[a, i] - tv[a, i]) - th[a, i + ns - ONE])
-                  + th[a, i + ns]) + tv[a, i + ns]) + other[a, i]
+            f = _neighbours(base[a, i] + bending_scale * bend[a, i], th, tv, a, i, ns, 1.0) \
+                + other[a, i]
             dv[a, i] = dt * inv_mass[i] * f
         for i in range(n, count):
             dv[a, i] = dt * inv_mass[i] * (base[a, i] + bending_scale * bend[a, i] + other[a, i])
@@ -419,8 +429,7 @@ def _apply(grid, rows, out, rows_view, out_view):
     _block_products(grid, rows, 0.0)
     for a in range(U(3)):
         for i in range(n):
-            out[a, i] = (((mass[i] * rows[a, i] - wv[a, i]) - wh[a, i + ns - ONE])
-                         + wh[a, i + ns]) + wv[a, i + ns]
+            out[a, i] = _neighbours(mass[i] * rows[a, i], wh, wv, a, i, ns, 1.0)
         for i in range(n, count):
             out[a, i] = mass[i] * rows[a, i]
     add_thread_blocks(rows_view, grid.o_pairs, grid.o_along, grid.o_across, grid.o_axis,
@@ -517,10 +526,8 @@ def implicit_step(grid, views, dt, tol, iterations):
     wh, wv = grid.wh, grid.wv
     for a in range(U(3)):
         for i in range(n):
-            f = ((((base[a, i] + bend[a, i] - tv[a, i]) - th[a, i + ns - ONE]) + th[a, i + ns])
-                 + tv[a, i + ns]) + other[a, i]
-            r[a, i] = (((dt * f + wv[a, i]) + wh[a, i + ns - ONE]) - wh[a, i + ns]) \
-                - wv[a, i + ns]
+            f = _neighbours(base[a, i] + bend[a, i], th, tv, a, i, ns, 1.0) + other[a, i]
+            r[a, i] = _neighbours(dt * f, wh, wv, a, i, ns, -1.0)
         for i in range(n, count):
             r[a, i] = dt * (base[a, i] + bend[a, i] + other[a, i])
     add_thread_rhs(views.velocity, grid.o_pairs, grid.o_k, grid.o_along, grid.o_across,
@@ -628,8 +635,7 @@ def bending(grid, views, torque):
     _bending_stencil(x, v, q, w, ns, grid.v_bend, bv, n - ns, ns)
     for a in range(U(3)):
         for i in range(n):
-            bend[a, i] = (((0.0 - bv[a, i]) - bh[a, i + ns - ONE]) + bh[a, i + ns]) \
-                + bv[a, i + ns]
+            bend[a, i] = _neighbours(0.0, bh, bv, a, i, ns, 1.0)
         for i in range(n, count):
             bend[a, i] = 0.0
     for a in range(U(3)):

@@ -387,9 +387,9 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
     symplectic) or are held over it (implicit Euler: a smooth right-hand side keeps the CG
     warm start); either way the orientations are advanced once per interval
     (:func:`~bulletnet.forces.bending.advance_rotation`). With a non-empty ``grid`` the
-    threads are its stencils (:mod:`bulletnet.grid`): ``pos``, ``vel``, ``quat``, ``omega``
-    and work's dv and bend are then its ``views``, and gravity and external have been loaded
-    into its base."""
+    threads and bending springs are its stencils (:mod:`bulletnet.grid`): ``pos``, ``vel``,
+    ``quat``, ``omega`` and work's dv are then its ``views``, and gravity and external have
+    been loaded into its base."""
     n = pos.shape[0]
     mass, fixed, radius = model.mass, model.fixed, model.radius
     torque, dv, gain = work.torque, work.dv, work.gain

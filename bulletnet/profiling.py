@@ -90,7 +90,7 @@ def instrument(profile: Profile, engine, recorder) -> None:
 def _force_loop(steps, bending, every, pos, vel, quat, omega, model, work, gravity, external,
                 grid, views):
     """The force kernels of ``steps`` steps on a fixed state, bending on its schedule: the
-    grid's (``grid.n`` > 0; pos, vel and work's bend its views) or the pair list's."""
+    grid's (``grid.n`` > 0; pos and vel its views) or the pair list's."""
     for _ in range(steps):
         weight = bending_weight(bending, every, work)
         if grid.n:
@@ -126,14 +126,13 @@ def step_split(engine, state: NetState) -> dict | None:
         copy = state.copy()
         engine.advance(copy, copy.time + steps * engine.dt)
 
-    grid, views = getattr(engine, "grid", grid_kernels.build(None)), None
+    grid = getattr(engine, "grid", None) or grid_kernels.build(None)
     if grid.n:  # the grid's force kernels, on its rows (they hold the last state reached)
         views = engine.views
         pos, vel = views.position, views.velocity
-        work = work._replace(bend=views.bend)
     else:
-        pos, vel = state.position.copy(), state.velocity.copy()
         views = grid_kernels.views(grid)
+        pos, vel = state.position.copy(), state.velocity.copy()
 
     def forces(steps):
         _force_loop(steps, engine.bending, engine.bending_every, pos, vel, quat.copy(),

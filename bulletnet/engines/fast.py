@@ -32,10 +32,9 @@ class FastEngine(Engine):
         """The net's grid threads and structure-of-arrays state (empty: the pair-list path)."""
         self.views = grid_kernels.views(self.grid)
         """(N, 3) views of the grid's rows."""
-        self.step_work = (self.work._replace(dv=self.views.dv, bend=self.views.bend)
-                          if use_grid else self.work)
-        """The workspace the steps use (on the grid: its velocity increment and bending
-        forces are the grid's rows)."""
+        self.step_work = self.work._replace(dv=self.views.dv) if use_grid else self.work
+        """The workspace the steps use (on the grid: its velocity increment, which the
+        contact stage reads, is the grid's rows)."""
 
     @property
     def kernels(self) -> str:
