@@ -44,8 +44,9 @@ from .model import NetModel, NodeKind
 from .scenario import Scenario
 
 CLASS_OF_KIND = {NodeKind.CORNER_MASS: 1, NodeKind.CORNER: 2, NodeKind.EDGE: 3,
-                 NodeKind.INNER: 4}
-"""Index in :data:`~bulletnet.hertz.BODY_CLASSES` of each node kind (0 is the debris)."""
+                 NodeKind.INNER: 4, NodeKind.TETHER: -1, NodeKind.CHASER: -1}
+"""Index in :data:`~bulletnet.hertz.BODY_CLASSES` of each node kind (0 is the debris); -1:
+the node has no contact (the main tether and the chaser, which stay behind the net)."""
 
 ALUMINIUM_CLASSES = (0, 1)
 """Classes made of aluminium (the debris and the corner masses); the rest is net material."""
@@ -285,7 +286,7 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
     p0, n, r, vs, acc, tmp = (np.empty(3), np.empty(3), np.empty(3), np.empty(3),
                               np.empty(3), np.empty(3))
     for i in range(pos.shape[0]):
-        if fixed[i]:
+        if fixed[i] or cls[i] < 0:
             continue
         for a in range(3):
             p0[a] = pos[i, a] - dt * vel[i, a]
@@ -351,18 +352,28 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
 @nb.njit(cache=True, error_model="numpy")
 def build_pairs(pos, radius, contact):
     """Rebuild the Verlet list of node pairs closer than their radii plus the skin (sweep
-    along x). Returns False if the list's capacity is too small."""
+    along x; nodes without contact left out). Returns False if the list's capacity is too
+    small."""
     skin = contact.params[1]
     pairs, meta, ref = contact.pairs, contact.pair_meta, contact.build_position
+    cls = contact.node_class
     order = np.argsort(pos[:, 0])
-    reach = 2.0 * radius.max() + skin
+    largest = 0.0
+    for i in range(pos.shape[0]):
+        if cls[i] >= 0:
+            largest = max(largest, radius[i])
+    reach = 2.0 * largest + skin
     count = 0
     for a in range(order.shape[0]):
         i = order[a]
+        if cls[i] < 0:
+            continue
         for b in range(a + 1, order.shape[0]):
             j = order[b]
             if pos[j, 0] - pos[i, 0] > reach:
                 break
+            if cls[j] < 0:
+                continue
             dx, dy, dz = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
             cut = radius[i] + radius[j] + skin
             if dx * dx + dy * dy + dz * dz < cut * cut:

@@ -42,6 +42,7 @@ from .forces.bending import (
     relative_rotation_vector,
     transverse_force,
 )
+from .forces.cable import CableArrays, add_cable_blocks, add_cable_product, cable_forces, no_cables
 from .model import NetModel
 from .topology import thread_pairs
 
@@ -144,6 +145,8 @@ class Grid(NamedTuple):
     [N m] (3), torque on node i [N m] (3), shape (9, Ns + Ns^2)."""
     bv: np.ndarray
     """The same for thread v(i), shape (9, Ns + Ns^2)."""
+    cables: CableArrays
+    """The closing cables (pair-list kernels on the views; empty without)."""
 
 
 class GridViews(NamedTuple):
@@ -170,6 +173,8 @@ class GridViews(NamedTuple):
     """Orientations [-], shape (N, 4)."""
     omega: np.ndarray
     """Angular velocities [rad/s], shape (N, 3)."""
+    block_inv: np.ndarray
+    """Inverse block-Jacobi preconditioner, row-major 3 x 3 [1/kg], shape (N, 9)."""
 
 
 def applies(model: NetModel) -> bool:
@@ -200,9 +205,10 @@ def _carve(shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
     return out
 
 
-def build(model: NetModel | None) -> Grid:
+def build(model: NetModel | None, cables: CableArrays | None = None) -> Grid:
     """The grid of a net that :func:`applies`: its threads' parameters rearranged by stencil
-    and zeroed state and scratch; with None, an empty grid (``n`` 0: the pair-list path)."""
+    and zeroed state and scratch, and its closing ``cables`` (none if None); with model None,
+    an empty grid (``n`` 0: the pair-list path)."""
     if model is None:
         ns = count = 0
         pairs, mass = np.zeros((0, 2), np.int64), np.zeros(0)
@@ -236,7 +242,7 @@ def build(model: NetModel | None) -> Grid:
         wh=wh, wv=wv, cg=cg,
         block_inv=block_inv, o_tension=np.zeros(q), o_along=np.zeros(q), o_across=np.zeros(q),
         o_axis=o_axis, o_bend=o[3:7].copy(), o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q),
-        bh=bh, bv=bv)
+        bh=bh, bv=bv, cables=no_cables() if cables is None else cables)
 
 
 def views(grid: Grid) -> GridViews:
@@ -245,7 +251,7 @@ def views(grid: Grid) -> GridViews:
     count = grid.count
     return GridViews(*(a[:, :count].T for a in (grid.x, grid.v, grid.dv, grid.bend,
                                                 grid.other, grid.cg[0], grid.cg[2],
-                                                grid.cg[3], grid.q, grid.w)))
+                                                grid.cg[3], grid.q, grid.w, grid.block_inv)))
 
 
 def load(grid: Grid, state, base) -> None:
@@ -334,13 +340,16 @@ def _linearize_stencil(x, v, off, rest, k, c, tension_e, axis, blocks, row, dt, 
 
 @nb.njit(cache=True, error_model="numpy", _nrt=False)
 def _other_threads(grid, views, dt, linearize):
-    """The other threads' forces [N] into ``other`` (pair-list kernels on the views); with
-    ``linearize`` also their directions and implicit blocks."""
-    other, pairs = views.other, grid.o_pairs
+    """The other threads' and the cables' forces [N] into ``other`` (pair-list kernels on the
+    views); with ``linearize`` also their directions and implicit blocks."""
+    other, pairs, cables = views.other, grid.o_pairs, grid.cables
     for q in range(pairs.shape[0]):
         for end in range(2):
             for a in range(3):
                 other[pairs[q, end], a] = 0.0
+    for v in range(cables.nodes.shape[0]):
+        for a in range(3):
+            other[cables.nodes[v], a] = 0.0
     if linearize:
         axial_linearization(views.position, views.velocity, pairs, grid.o_rest, grid.o_k,
                             grid.o_c, False, dt, other, grid.o_tension, grid.o_along,
@@ -348,6 +357,7 @@ def _other_threads(grid, views, dt, linearize):
     else:
         axial_forces(views.position, views.velocity, pairs, grid.o_rest, grid.o_k, grid.o_c,
                      False, other, grid.o_tension)
+    cable_forces(views.position, views.velocity, cables, other, linearize, dt)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -434,6 +444,7 @@ def _apply(grid, rows, out, rows_view, out_view):
             out[a, i] = mass[i] * rows[a, i]
     add_thread_blocks(rows_view, grid.o_pairs, grid.o_along, grid.o_across, grid.o_axis,
                       out_view)
+    add_cable_product(rows_view, grid.cables, out_view, 0.0, 1.0)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -458,7 +469,7 @@ def _store(rows, i, m):
 
 
 @nb.njit(cache=True, error_model="numpy", _nrt=False)
-def _block_jacobi(grid):
+def _block_jacobi(grid, views):
     """Each node's 3 x 3 diagonal block of the implicit system, inverted, into block_inv."""
     ns, n, count, mass, inv = U(grid.ns), U(grid.n), U(grid.count), grid.mass, grid.block_inv
     blocks, eh, ev = grid.blocks, grid.eh, grid.ev
@@ -482,6 +493,7 @@ def _block_jacobi(grid):
                           across[q], axis[q, 0], axis[q, 1], axis[q, 2])
             for a in range(9):
                 inv[a, node] = m[a]
+    add_cable_blocks(grid.cables, views.block_inv)
     for i in range(count):
         _store(inv, i, invert3((inv[0, i], inv[1, i], inv[2, i], inv[3, i], inv[4, i],
                                 inv[5, i], inv[6, i], inv[7, i], inv[8, i])))
@@ -532,6 +544,7 @@ def implicit_step(grid, views, dt, tol, iterations):
             r[a, i] = dt * (base[a, i] + bend[a, i] + other[a, i])
     add_thread_rhs(views.velocity, grid.o_pairs, grid.o_k, grid.o_along, grid.o_across,
                    grid.o_axis, dt, views.r)
+    add_cable_product(views.velocity, grid.cables, views.r, dt * dt, -1.0)
     m0 = m1 = m2 = 0.0  # the step's exact momentum change (internal forces cancel)
     for i in range(count):
         m0 += r[0, i]
@@ -541,7 +554,7 @@ def implicit_step(grid, views, dt, tol, iterations):
         m2 += r[2, i]
     rhs_norm = np.sqrt(_dot(r, r, count))
     if rhs_norm != 0.0:
-        _block_jacobi(grid)
+        _block_jacobi(grid, views)
         _apply(grid, dv, ad, views.dv, views.ad)  # r <- rhs - A dv (warm start)
         for a in range(U(3)):
             for i in range(count):

@@ -39,6 +39,14 @@ from .forces.axial import (
     invert3,
 )
 from .forces.bending import advance_rotation, bending_forces
+from .forces.cable import (
+    CableArrays,
+    add_cable_blocks,
+    add_cable_product,
+    cable_forces,
+    no_cables,
+    reel,
+)
 from .model import NetModel
 
 SYMPLECTIC_EULER = 0
@@ -101,10 +109,13 @@ class ModelArrays(NamedTuple):
     (:func:`rotational_bounds`)."""
     rot_k: np.ndarray
     """Gershgorin bound of each node's angular stiffness [N m/rad], shape (N,)."""
+    cables: CableArrays
+    """The closing cables and their winches (:mod:`bulletnet.forces.cable`; empty without)."""
 
 
-def model_arrays(model: NetModel) -> ModelArrays:
-    """The model's arrays as the compiled kernels read them."""
+def model_arrays(model: NetModel, cables: CableArrays | None = None) -> ModelArrays:
+    """The model's arrays as the compiled kernels read them, with the closing ``cables``
+    (:func:`~bulletnet.forces.cable.cable_arrays`; none if None)."""
     m = model
     rot_c, rot_k = rotational_bounds(m)
     return ModelArrays(
@@ -113,7 +124,8 @@ def model_arrays(model: NetModel) -> ModelArrays:
         k_b=m.bending_stiffness, c_b=m.bending_damping, inertia=m.inertia,
         rest_axis=m.rest_axis, fixed=m.fixed, load=m.load, bilateral=m.bilateral,
         inv_mass=np.where(m.fixed, 0.0, 1.0 / m.mass),  # clamped nodes: no velocity change
-        radius=m.radius, rot_c=rot_c, rot_k=rot_k)
+        radius=m.radius, rot_c=rot_c, rot_k=rot_k,
+        cables=no_cables() if cables is None else cables)
 
 
 class Workspace(NamedTuple):
@@ -189,21 +201,23 @@ def external_forces(pos, vel, quat, omega, model, work, gravity, external, bendi
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _apply_blocks(x, pairs, along, across, axis, mass, fixed, out):
-    """out = M x + sum_p B_p-Laplacian x, the implicit-Euler system applied to x (rows of
-    clamped nodes are the identity)."""
+def _apply_blocks(x, pairs, along, across, axis, mass, fixed, cables, out):
+    """out = M x + sum_p B_p-Laplacian x + the cables' blocks x, the implicit-Euler system
+    applied to x (rows of clamped nodes are the identity)."""
     for i in range(x.shape[0]):
         for a in range(3):
             out[i, a] = mass[i] * x[i, a]
     add_thread_blocks(x, pairs, along, across, axis, out)
+    add_cable_product(x, cables, out, 0.0, 1.0)
     for i in range(x.shape[0]):
         if fixed[i]:
             out[i, 0], out[i, 1], out[i, 2] = x[i, 0], x[i, 1], x[i, 2]
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _block_jacobi(pairs, along, across, axis, mass, inv):
-    """Invert each node's 3x3 diagonal block of the implicit system into ``inv``."""
+def _block_jacobi(pairs, along, across, axis, mass, cables, inv):
+    """Invert each node's 3x3 diagonal block of the implicit system (the cables' vertices'
+    shares included) into ``inv``."""
     n = mass.shape[0]
     flat = inv.reshape((n, 9))
     for i in range(n):
@@ -219,6 +233,7 @@ def _block_jacobi(pairs, along, across, axis, mass, inv):
                           axis[p, 2])
             for a in range(9):
                 flat[node, a] = m[a]
+    add_cable_blocks(cables, flat)
     for i in range(n):
         m = invert3((flat[i, 0], flat[i, 1], flat[i, 2], flat[i, 3], flat[i, 4], flat[i, 5],
                      flat[i, 6], flat[i, 7], flat[i, 8]))
@@ -255,14 +270,17 @@ def implicit_increment(pos, vel, model, work, dt, tol):
                                            work.axis)
     dv, cg, block_inv, iterations = work.dv, work.cg, work.block_inv, work.cg_iterations
     n = pos.shape[0]
+    cables = model.cables
     axial_linearization(pos, vel, pairs, rest, k_a, c_a, bilateral, dt, force, tension, along,
                         across, axis)
+    cable_forces(pos, vel, cables, force, True, dt)
     r, z, d, ad = cg[0], cg[1], cg[2], cg[3]
     # right-hand side dt F - dt^2 K v, in r
     for i in range(n):
         for a in range(3):
             r[i, a] = dt * force[i, a]
     add_thread_rhs(vel, pairs, k_a, along, across, axis, dt, r)
+    add_cable_product(vel, cables, r, dt * dt, -1.0)
     clamped = False
     for i in range(n):
         if fixed[i]:
@@ -277,9 +295,9 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     if rhs_norm == 0.0:
         dv[:] = 0.0
         return
-    _block_jacobi(pairs, along, across, axis, mass, block_inv)
+    _block_jacobi(pairs, along, across, axis, mass, cables, block_inv)
     # r <- rhs - A dv (warm start)
-    _apply_blocks(dv, pairs, along, across, axis, mass, fixed, ad)
+    _apply_blocks(dv, pairs, along, across, axis, mass, fixed, cables, ad)
     for i in range(n):
         for a in range(3):
             r[i, a] -= ad[i, a]
@@ -290,7 +308,7 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     for _ in range(4 * n):
         if np.sqrt(rr) <= tol * rhs_norm:
             break
-        _apply_blocks(d, pairs, along, across, axis, mass, fixed, ad)
+        _apply_blocks(d, pairs, along, across, axis, mass, fixed, cables, ad)
         alpha = rz / _dot(d, ad)
         rz_new = rr = 0.0
         for i in range(n):  # one pass: update, precondition (block Jacobi), dot products
@@ -333,6 +351,7 @@ def symplectic_increment(pos, vel, model, work, dt):
     inv_mass, force, dv = model.inv_mass, work.force, work.dv
     axial_forces(pos, vel, model.pairs, model.rest, model.k_a, model.c_a, model.bilateral,
                  force, work.tension)
+    cable_forces(pos, vel, model.cables, force, False, 0.0)
     for i in range(pos.shape[0]):
         h = dt * inv_mass[i]
         for a in range(3):
@@ -379,8 +398,9 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
             external, dt, tol, contact, t0, grid, views):
     """Take up to ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]) from
     time ``t0`` [s], the bending forces every ``every`` steps, then contact
-    (:func:`bulletnet.contact.contact_stage`, if ``contact`` has any on). Returns the steps
-    taken: fewer only if the self-contact list must grow first (the caller grows it and
+    (:func:`bulletnet.contact.contact_stage`, if ``contact`` has any on); the winches reel
+    the closing cables before each step (:func:`~bulletnet.forces.cable.reel`). Returns the
+    steps taken: fewer only if the self-contact list must grow first (the caller grows it and
     continues). The caller checks the result for non-finite values; a diverging chunk is
     at most one record interval. The bending springs, evaluated every ``every`` steps, act
     as one impulse standing for the interval (symplectic Euler: the multirate step stays
@@ -397,15 +417,19 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
     touching = flags[0] or flags[1]
     pending = 0  # steps of rotation not yet applied to (quat, omega)
     hold = 1.0 if method == IMPLICIT_EULER else 0.0
-    if grid.n and not bending and not touching:
+    if grid.n and not bending and not touching and model.cables.rest.shape[0] == 0:
         grid_kernels.free_steps(grid, views, method == IMPLICIT_EULER, steps, dt, tol,
                                 work.cg_iterations)
         work.step_count[0] += steps
         return steps
     taken = 0
+    cables = model.cables
+    reeling = cables.rest.shape[0] > 0
     for step in range(steps):
         if touching and not ensure_pairs(pos, radius, contact):
             break
+        if reeling:
+            reel(pos, cables, t0 + step * dt, dt)
         weight = bending_weight(bending, every, work)
         if weight > 0.0 and pending > 0:
             advance_rotation(quat, omega, gain, torque, hold, pending, dt)

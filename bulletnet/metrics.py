@@ -18,10 +18,11 @@ Capture (Sec. 5), from recordings with debris and contact:
 - leave time: the end of the last frame interval with debris contact, when no contact follows
   for at least ``LEAVE_QUIET_S`` to the end of the run;
 - the debris' spin before and after: angular velocity [deg/s] at the first and last frame;
-- the mechanical energy: the nodes' kinetic energy, the threads' elastic energy and the
-  debris' kinetic energy. What it leaves out (the nodes' rotation, the bending and contact
-  springs) is never negative and zero at the start of a scene, and every force of the model
-  is passive: so it never rises above its initial value in a sound run.
+- the mechanical energy: the nodes' kinetic energy, the threads' and closing cables'
+  elastic energy and the debris' kinetic energy. What it leaves out (the nodes' rotation, the
+  bending and contact springs) is never negative and zero at the start of a scene, and every
+  force of the model is passive: so it never rises above its initial value plus the work of
+  the closing mechanism's winches (:func:`winch_work`) in a sound run.
 """
 
 from __future__ import annotations
@@ -227,13 +228,18 @@ def _covered(points, tri, rays):
 
 def energy(rec: Recording) -> np.ndarray:
     """Mechanical energy [J], shape (T,): the nodes' translational kinetic energy, the
-    threads' elastic energy (Eq. 3 springs) and, with debris, its kinetic energy (translation
-    of its centre of mass and rotation about it). Leaves out the nodes' rotation and the
-    bending and contact springs (see the module doc)."""
+    threads' and closing cables' elastic energy (Eq. 3 springs) and, with debris, its kinetic
+    energy (translation of its centre of mass and rotation about it). Leaves out the nodes'
+    rotation and the bending and contact springs (see the module doc)."""
     from .forces.axial import axial_energy
 
     total = 0.5 * np.einsum("n,tna,tna->t", rec.mass, rec.velocity, rec.velocity)
     total += axial_energy(rec.position, rec.pairs, rec.rest_length, rec.stiffness)
+    if rec.cables is not None:
+        from .forces.cable import cable_energy
+
+        c = rec.cables
+        total += cable_energy(c["length"], c["rest_length"], c["rigidity"]).sum(axis=1)
     if rec.debris is not None:
         d = rec.debris
         rot = rotation_matrix(d["orientation"])
@@ -243,6 +249,14 @@ def energy(rec: Recording) -> np.ndarray:
                                                               d["velocity"])
         total += 0.5 * np.einsum("ta,tab,tb->t", w, inertia, w)
     return total
+
+
+def winch_work(rec: Recording) -> np.ndarray:
+    """Work done by all the closing mechanism's winches so far [J], shape (T,); zero without
+    one. The mechanical energy (:func:`energy`) may rise by this much and no more."""
+    if rec.cables is None:
+        return np.zeros(rec.time.size)
+    return rec.cables["work"].sum(axis=1)
 
 
 def spin(rec: Recording) -> dict:
@@ -256,8 +270,8 @@ def spin(rec: Recording) -> dict:
 def capture_summary(rec: Recording) -> dict:
     """Capture measures (JSON-ready, units in the keys): first-contact and leave times,
     peak nodes in contact and wrap, the debris' spin change, the largest rise of the
-    mechanical energy above its start (:func:`energy`; a sound run has none), and the time
-    series."""
+    mechanical energy above its start plus the winches' work (:func:`energy`,
+    :func:`winch_work`; a sound run has none), and the time series."""
     count = nodes_in_contact(rec)
     wrapped = wrap(rec)
     k = int(np.argmax(wrapped))
@@ -270,7 +284,7 @@ def capture_summary(rec: Recording) -> dict:
         "max_nodes_in_contact": int(count.max()),
         "max_wrap": float(wrapped[k]), "max_wrap_time_s": float(rec.time[k]),
         "spin": spin(rec),
-        "max_energy_gain_J": float(np.max(total - total[0])),
+        "max_energy_gain_J": float(np.max(total - total[0] - winch_work(rec))),
         "nodes_in_contact": count.astype(int).tolist(),
         "normal_force_N": rec.contacts["normal_force"].tolist(),
         "wrap": wrapped.tolist(),

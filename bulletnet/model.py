@@ -1,13 +1,15 @@
 """The immutable net model: topology, masses and thread parameters as arrays.
 
-N = Ns**2 + 4 nodes (net nodes row by row, then the four corner masses); P = 2 Ns (Ns - 1) + 4
-threads (inner threads in Eq. 1's order, then the four corner threads). Indices are 0-based:
-the paper's node k is index k - 1.
+N = Ns**2 + 4 nodes (net nodes row by row, then the four corner masses), then, with a main
+tether, its nodes from the net to the chaser (the last); P = 2 Ns (Ns - 1) + 4 threads (inner
+threads in Eq. 1's order, then the four corner threads), then the tether's (the bridle's four
+lines first). Indices are 0-based: the paper's node k is index k - 1. Closing cables are
+polylines over these nodes (C cables, V vertices in all).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import IntEnum
 
 import numpy as np
@@ -20,6 +22,8 @@ class NodeKind(IntEnum):
     EDGE = 1
     CORNER = 2
     CORNER_MASS = 3
+    TETHER = 4
+    CHASER = 5
 
 
 @dataclass(frozen=True)
@@ -60,6 +64,17 @@ class NetModel:
     """Constant external force on each node (e.g. a tip load) [N], shape (N, 3)."""
     bilateral: bool
     """Whether the elements also resist compression (a beam, not threads)."""
+    cable_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Node of each closing-cable vertex, cable after cable, ends first and last [-],
+    shape (V,), int64."""
+    cable_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    """First vertex of each cable, then V [-], shape (C + 1,), int64."""
+    cable_rest_length: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Initial rest length L_0 of each cable [m], shape (C,)."""
+    cable_rigidity: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Axial rigidity E A of each cable [N], shape (C,)."""
+    cable_damping_time: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """c / k of each cable, 2 xi / omega_ref [s], shape (C,)."""
 
     def __post_init__(self):
         for name in self.__dataclass_fields__:
@@ -71,6 +86,11 @@ class NetModel:
     def node_count(self) -> int:
         """N, nodes including the four corner masses [-]."""
         return self.mass.shape[0]
+
+    @property
+    def cable_count(self) -> int:
+        """C, closing cables [-]."""
+        return self.cable_rest_length.shape[0]
 
     @property
     def thread_count(self) -> int:

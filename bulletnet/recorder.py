@@ -10,7 +10,8 @@ path                      shape         meaning
 /nodes/velocity           (T, N, 3)     node velocities [m/s]
 /nodes/mass               (N,)          node masses [kg]
 /nodes/radius             (N,)          node sphere radii [m]
-/nodes/kind               (N,)          0 inner, 1 edge, 2 corner, 3 corner mass [-]
+/nodes/kind               (N,)          0 inner, 1 edge, 2 corner, 3 corner mass,
+                                        4 tether, 5 chaser [-]
 /threads/pairs            (P, 2)        end nodes i -> j, 0-based [-]
 /threads/rest_length      (P,)          l_0 [m]
 /threads/stiffness        (P,)          k_a [N/m]
@@ -33,6 +34,14 @@ path                      shape         meaning
 /contacts/node_force      (T, N)        each node's debris normal force, mean over the
                                         interval [N] (> 0: the node touched)
 /contacts/self_count      (T,)          nodes that touched another node in the interval [-]
+/cables/nodes             (V,)          closing-cable vertices' nodes, cable after cable [-]
+                                        (scenes with a closing mechanism)
+/cables/start             (C + 1,)      first vertex of each cable, then V [-]
+/cables/rigidity          (C,)          E A [N]
+/cables/tension           (T, C)        cable tension, 0 when slack [N]
+/cables/length            (T, C)        length along the cable's polyline [m]
+/cables/rest_length       (T, C)        rest length, shortened by the winch [m]
+/cables/work              (T, C)        work done by the cable's winch so far [J]
 ========================  ============  =====================================================
 
 Contact forces are means over the record interval (impulse / interval): an impact lasts
@@ -144,6 +153,14 @@ class Recorder:
                                        ("velocity", (3,), "m/s"),
                                        ("angular_velocity", (3,), "rad/s")):
                 self._series["debris_" + name] = growing("debris/" + name, shape, units)
+        if model.cable_count:
+            static("cables/nodes", model.cable_nodes, "1")
+            static("cables/start", model.cable_start, "1")
+            static("cables/rigidity", model.cable_rigidity, "N")
+            for name, units in (("tension", "N"), ("length", "m"), ("rest_length", "m"),
+                                ("work", "J")):
+                self._series["cable_" + name] = growing("cables/" + name, (model.cable_count,),
+                                                        units)
         if contact:
             self._series["contact_count"] = growing("contacts/count", (), "1")
             self._series["contact_force"] = growing("contacts/normal_force", (), "N")
@@ -153,10 +170,11 @@ class Recorder:
         self._last_flush = _time.monotonic()
 
     def append(self, state: NetState, tension: np.ndarray, shear: np.ndarray,
-               contacts: dict | None = None) -> None:
-        """Add one frame: the state, thread tensions and shear forces (P,) [N], and the
+               contacts: dict | None = None, cables: dict | None = None) -> None:
+        """Add one frame: the state, thread tensions and shear forces (P,) [N], the
         contact forces since the last frame (``node_force``, ``self_force`` (N,) [N], as
-        :meth:`bulletnet.engines.base.Engine.contact_loads` gives them)."""
+        :meth:`bulletnet.engines.base.Engine.contact_loads` gives them) and the closing
+        cables (as :meth:`~bulletnet.engines.base.Engine.cable_loads` gives them)."""
         values = {"time": state.time, "position": state.position, "velocity": state.velocity,
                   "tension": tension, "shear": shear,
                   "orientation": state.orientation, "angular_velocity": state.angular_velocity}
@@ -172,6 +190,8 @@ class Recorder:
                           contact_force=contacts["node_force"].sum(),
                           contact_node_force=contacts["node_force"],
                           contact_self_count=np.count_nonzero(contacts["self_force"]))
+        if cables is not None:
+            values.update({"cable_" + k: v for k, v in cables.items()})
         for name in self._series:
             self._pending.setdefault(name, []).append(np.array(values[name], dtype=float))
         self.frames += 1

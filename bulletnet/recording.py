@@ -49,6 +49,11 @@ class Recording:
     contacts: dict | None = None
     """Scenes with contact: ``count`` (T,), ``normal_force`` (T,) [N], ``node_force``
     (T, N) [N], ``self_count`` (T,) (see :mod:`bulletnet.recorder`); else None."""
+    cables: dict | None = None
+    """Scenes with a closing mechanism: ``nodes`` (V,) and ``start`` (C + 1,) (each cable's
+    polyline of nodes), ``rigidity`` (C,) E A [N], and per frame ``tension`` (T, C) [N],
+    ``length`` (T, C) [m], ``rest_length`` (T, C) [m] and the winches' ``work`` (T, C) [J]
+    (see :mod:`bulletnet.recorder`); else None."""
 
     @property
     def nodes_per_side(self) -> int:
@@ -107,6 +112,7 @@ def open_recording(path: str | os.PathLike) -> Recording:
                 stiffness=f["threads/stiffness"][()],
                 debris=_group(f, "debris", frames),
                 contacts=_group(f, "contacts", frames),
+                cables=_group(f, "cables", frames),
             )
         except (KeyError, OSError) as exc:
             raise RecordingError(f"{p}: damaged recording ({exc})") from None

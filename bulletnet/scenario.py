@@ -192,6 +192,75 @@ class DebrisScene:
     rigid-body dynamics in PyBullet [s] (the debris moves rigidly in between)."""
 
 
+CLOSING_ROUTES = ("sides", "perimeter")
+CLOSING_TRIGGERS = ("time", "contact")
+TETHER_ATTACHMENTS = ("center", "bridle")
+
+
+@dataclass(frozen=True)
+class Closing:
+    enabled: bool = _f(False, "-")
+    """Whether the net has a closing mechanism: cables through rings on its perimeter nodes,
+    reeled in by winches in the corner masses (docs/capture.md)."""
+    route: str = _f("sides", "-", "choice", CLOSING_ROUTES)
+    """``sides``: four cables, each from a corner mass along one side of the net to the next
+    corner mass, reeled by the winch in its first corner mass; ``perimeter``: one cable from
+    corner mass 0 round the whole perimeter back to it, reeled there."""
+    length_ratio: float = _f(1.05, "-", ">0")
+    """Rest length of each cable over its length along the deployed net (nodes at their
+    threads' rest lengths) [-]; above 1 the cable does not hold the deployment back."""
+    diameter: float = _f(0.001, "m", ">0")
+    """Cable diameter [m]."""
+    young_modulus: float = _f(70e9, "Pa", ">0")
+    """Cable Young's modulus [Pa] (Technora, as the net)."""
+    density: float = _f(1390.0, "kg/m^3", ">0")
+    """Cable density [kg/m^3]; its mass is lumped on the ring nodes it starts on (Eq. 2)."""
+    damping_ratio: float = _f(0.106, "-", ">=0")
+    """Cable damping ratio xi [-] in c = 2 xi k / omega_ref, with the net's reference
+    frequency (``damping.axial_reference_frequency``): the threads' law (Eq. 3)."""
+    reel_speed: float = _f(0.5, "m/s", ">=0")
+    """Speed at which each winch reels its cable in [m/s]."""
+    stall_tension: float = _f(5.0, "N", ">0")
+    """Cable tension at which a winch stops reeling and holds [N] (it reels on below it)."""
+    trigger: str = _f("contact", "-", "choice", CLOSING_TRIGGERS)
+    """When the winches start: at ``trigger_time`` (``time``) or ``trigger_delay`` after the
+    net first touches the debris (``contact``)."""
+    trigger_time: float = _f(0.0, "s", ">=0")
+    """Start time of the winches with trigger ``time`` [s]."""
+    trigger_delay: float = _f(2.0, "s", ">=0")
+    """Delay from the first debris contact to the start of the winches with trigger
+    ``contact`` [s]."""
+
+
+@dataclass(frozen=True)
+class Tether:
+    enabled: bool = _f(False, "-")
+    """Whether a main tether joins the net to a chaser (docs/capture.md)."""
+    attach: str = _f("center", "-", "choice", TETHER_ATTACHMENTS)
+    """Where the tether holds the net: its ``center`` node, or the four corner masses
+    through a ``bridle`` of four lines meeting at the tether's first node."""
+    length: float = _f(50.0, "m", ">0")
+    """Rest length of the tether from the net (or the bridle's junction) to the chaser [m]."""
+    segments: int = _f(25, "-", ">0")
+    """Threads the tether is lumped into [-] (segments - 1 tether nodes between its ends)."""
+    bridle_length: float = _f(10.0, "m", ">0")
+    """Rest length of each bridle line [m] (attach ``bridle``)."""
+    diameter: float = _f(0.002, "m", ">0")
+    """Tether (and bridle) diameter [m]."""
+    young_modulus: float = _f(70e9, "Pa", ">0")
+    """Tether Young's modulus [Pa]."""
+    density: float = _f(1390.0, "kg/m^3", ">0")
+    """Tether density [kg/m^3]."""
+    damping_ratio: float = _f(0.106, "-", ">=0")
+    """Tether damping ratio xi [-] in c = 2 xi k / omega_ref (Eq. 3's law)."""
+    chaser_mass: float = _f(1000.0, "kg", ">=0")
+    """Mass of the chaser, a free body at the tether's far end [kg]; 0 holds the chaser
+    fixed (the general pair-list kernels then run the net)."""
+    chaser_distance: float = _f(20.0, "m", ">0")
+    """Initial distance of the chaser behind the net's centre, along -z [m]; the tether is
+    laid straight between them (slack if shorter than its length)."""
+
+
 @dataclass(frozen=True)
 class Simulation:
     engine: str = _f("fast", "-", "choice", ENGINES)
@@ -237,6 +306,8 @@ class Scenario:
     contact: Contact = field(default_factory=Contact)
     friction: Friction = field(default_factory=Friction)
     debris: DebrisScene = field(default_factory=DebrisScene)
+    closing: Closing = field(default_factory=Closing)
+    tether: Tether = field(default_factory=Tether)
     simulation: Simulation = field(default_factory=Simulation)
     source: str = field(default="<defaults>", compare=False)
     """Where the scene came from (file path or name), for error messages."""
@@ -347,6 +418,13 @@ def _check_consistency(s: Scenario) -> None:
         raise ScenarioError(
             f"{s.source}: simulation.dt: {s.simulation.dt} s is longer than scene.duration "
             f"{s.scene.duration} s")
+    for section in ("closing", "tether"):
+        if getattr(s, section).enabled and s.scene.kind != "net":
+            raise ScenarioError(f"{s.source}: {section}.enabled: a {s.scene.kind} scene has no "
+                                "net to close or tether")
+    if s.closing.enabled and s.simulation.engine == "reference":
+        raise ScenarioError(f"{s.source}: closing.enabled: the reference engine has no "
+                            "winches; use --engine fast or bullet")
 
 
 def to_dict(s: Any) -> dict:

@@ -153,7 +153,8 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             "bulletnet_version": _version(),
         }, oriented=state.oriented, debris=engine.debris,
             contact=scenario.contact.enabled)
-        recorder.append(state, *engine.thread_loads(state), engine.contact_loads())
+        recorder.append(state, *engine.thread_loads(state), engine.contact_loads(),
+                        engine.cable_loads())
     if profile is not None:
         instrument(profile, engine, recorder)
     limit = speed_limit(scenario, state)
@@ -169,7 +170,8 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
                                   analytical_limits(model, start_position,
                                                     scenario.bending.enabled))
             if recorder is not None:
-                recorder.append(state, *engine.thread_loads(state), engine.contact_loads())
+                recorder.append(state, *engine.thread_loads(state), engine.contact_loads(),
+                                engine.cable_loads())
             if progress is not None:
                 progress(state.time, scenario.scene.duration, _time.perf_counter() - start)
         status = "completed"

@@ -8,7 +8,8 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from .. import contact, integrators
-from ..builder import scene_debris
+from ..builder import MIN_REST_RATIO, scene_debris
+from ..forces.cable import CableArrays, cable_arrays
 from ..model import NetModel
 from ..scenario import Scenario
 from ..state import NetState
@@ -44,6 +45,21 @@ def bending_interval(model: NetModel, dt: float, margin: float) -> int:
     return max(1, math.floor(margin / (rate * dt)))
 
 
+def winch_cables(scenario: Scenario, model: NetModel) -> CableArrays:
+    """The model's closing cables with the scene's winches (reel speed, stall tension; they
+    stop at :data:`~bulletnet.builder.MIN_REST_RATIO` of the initial rest length), armed at
+    ``closing.trigger_time`` with trigger ``time`` (with ``contact``, see
+    :meth:`Engine.arm_winches`)."""
+    cl, count = scenario.closing, model.cable_count
+    cables = cable_arrays(model.cable_nodes, model.cable_start, model.cable_rest_length,
+                          model.cable_rigidity, model.cable_damping_time,
+                          np.full(count, cl.reel_speed), np.full(count, cl.stall_tension),
+                          MIN_REST_RATIO * model.cable_rest_length)
+    if cl.trigger == "time":
+        cables.start_time[0] = cl.trigger_time
+    return cables
+
+
 class Engine(ABC):
     """Advances a :class:`NetState` in place. Engines hold no state of the net but their own
     scratch space (and, for ``bullet``, the PyBullet world mirroring it)."""
@@ -53,7 +69,9 @@ class Engine(ABC):
     def __init__(self, scenario: Scenario, model: NetModel):
         self.scenario = scenario
         self.model = model
-        self.arrays = integrators.model_arrays(model)
+        self.cables = winch_cables(scenario, model)
+        """The closing cables and their winches, as the kernels read and write them."""
+        self.arrays = integrators.model_arrays(model, self.cables)
         self.work = integrators.workspace(model.node_count, model.thread_count)
         self._loads_work = integrators.workspace(model.node_count, model.thread_count)
         """Scratch space of :meth:`thread_loads` (the stepping workspace keeps its warm start)."""
@@ -79,6 +97,21 @@ class Engine(ABC):
         to PyBullet)."""
         self._impulse_time = 0.0
         """Simulated time since the contact impulses were last read [s]."""
+
+    def arm_winches(self) -> None:
+        """With the ``contact`` trigger, start the winches ``closing.trigger_delay`` after the
+        first debris contact once there has been one (engines call this between steps)."""
+        cl = self.scenario.closing
+        first = self.contact.arrays.first_contact[0]
+        if cl.trigger == "contact" and first >= 0.0 and self.cables.start_time[0] == np.inf:
+            self.cables.start_time[0] = first + cl.trigger_delay
+
+    def cable_loads(self) -> dict:
+        """The closing cables at the last force evaluation, each shape (C,): ``tension`` [N],
+        ``length`` [m], ``rest_length`` [m] and the winches' ``work`` so far [J]."""
+        c = self.cables
+        return {"tension": c.tension.copy(), "length": c.length.copy(),
+                "rest_length": c.rest.copy(), "work": c.work.copy()}
 
     handles_contact = True
     """Whether the engine applies contact with the compiled stage (bullet: PyBullet does)."""

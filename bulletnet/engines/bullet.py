@@ -25,6 +25,7 @@ import numpy as np
 from .. import integrators
 from ..contact import CLASS_OF_KIND
 from ..debris import body_origin, collision_shape, create_body, read_state
+from ..forces.cable import reel
 from ..model import NodeKind
 from ..quiet import quiet_stdout
 from ..state import NetState
@@ -58,7 +59,8 @@ class BulletEngine(Engine):
         c, m = self.client, self.model
         for i in range(m.node_count):
             shape = -1
-            if self.scenario.contact.enabled:
+            cls = CLASS_OF_KIND[NodeKind(m.kind[i])]
+            if self.scenario.contact.enabled and cls >= 0:
                 shape = c.createCollisionShape(self.pb.GEOM_SPHERE, radius=float(m.radius[i]))
             # a multibody base, not a maximal-coordinates body: PyBullet 3.2.7 applies
             # applyExternalTorque on the latter one step late (measured on a single body)
@@ -72,8 +74,8 @@ class BulletEngine(Engine):
             if m.fixed[i]:  # a clamp is a rigid joint: a PyBullet fixed constraint to the world
                 c.createConstraint(body, -1, -1, -1, self.pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
                                    state.position[i].tolist())
-            if self.materials is not None:
-                self._set_material(body, CLASS_OF_KIND[NodeKind(m.kind[i])])
+            if self.materials is not None and cls >= 0:
+                self._set_material(body, cls)
             self.bodies.append(body)
         if self.debris is not None:
             shape = (collision_shape(c, self.debris) if self.scenario.contact.enabled
@@ -126,6 +128,8 @@ class BulletEngine(Engine):
         mass_over_dt = self.model.mass[:, None] / dt
         first_step = self.steps
         for _ in range(steps):
+            self.arm_winches()
+            reel(state.position, self.cables, state.time + (self.steps - first_step) * dt, dt)
             quat, omega = self.rotations(state)
             weight = integrators.bending_weight(self.bending, self.bending_every, w)
             integrators.increment(method, weight, state.position, state.velocity, quat,

@@ -28,7 +28,7 @@ class FastEngine(Engine):
         """The debris' PyBullet world (created on the first step)."""
         use_grid = (scenario.simulation.kernels == "grid" and self.dt > 0
                     and grid_kernels.applies(model))
-        self.grid = grid_kernels.build(model if use_grid else None)
+        self.grid = grid_kernels.build(model if use_grid else None, self.cables)
         """The net's grid threads and structure-of-arrays state (empty: the pair-list path)."""
         self.views = grid_kernels.views(self.grid)
         """(N, 3) views of the grid's rows."""
@@ -65,6 +65,7 @@ class FastEngine(Engine):
         done = 0
         while done < steps:
             todo = min(chunk, steps - done)
+            self.arm_winches()
             if has_debris:
                 a.com[:], a.quat[0] = state.debris[:3], state.debris[3:7]
                 a.velocity[:], a.omega[0] = state.debris[7:10], state.debris[10:]

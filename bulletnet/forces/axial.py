@@ -25,6 +25,16 @@ def add_pair(array, i, j, x, y, z):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
+def kelvin_voigt(length, rate, rest, k, c, bilateral):
+    """Eq. 3's tension [N] of an element of length ``length`` [m] lengthening at ``rate``
+    [m/s]: k (l - l_0) + c l', or 0.0 if the element is slack (l <= l_0) or closing faster
+    than its spring holds (T <= 0), unless ``bilateral``. Branch-free."""
+    tension = k * (length - rest) + c * rate
+    taut = bilateral | ((length > rest) & (tension > 0.0))
+    return tension if taut else 0.0
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def tension_law(dx, dy, dz, du, dv, dw, rest, k, c, bilateral):
     """Eq. 3 for one thread from its end-to-end vector (dx, dy, dz) [m] and relative velocity
     (du, dv, dw) [m/s], rest length [m], stiffness [N/m] and damping [N s/m].
@@ -36,9 +46,8 @@ def tension_law(dx, dy, dz, du, dv, dw, rest, k, c, bilateral):
     length = np.sqrt(dx * dx + dy * dy + dz * dz)
     inv = 1.0 / length
     ex, ey, ez = dx * inv, dy * inv, dz * inv
-    tension = k * (length - rest) + c * (du * ex + dv * ey + dw * ez)
-    taut = bilateral | ((length > rest) & (tension > 0.0))
-    return (tension if taut else 0.0), ex, ey, ez, length
+    return (kelvin_voigt(length, du * ex + dv * ey + dw * ez, rest, k, c, bilateral), ex, ey,
+            ez, length)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
