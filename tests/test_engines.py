@@ -20,12 +20,20 @@ def reference_run(tmp_path_factory):
     return bn.open_recording(path)
 
 
+CLOSING_AND_TETHER = {
+    "closing.enabled": True, "closing.length_ratio": 0.995, "closing.trigger": "time",
+    "closing.reel_speed": 1.0, "tether.enabled": True, "tether.segments": 2,
+    "tether.length": 0.99, "tether.chaser_distance": 1.0}
+"""Closing cables taut and reeling from the start, and a stretched tether to a chaser."""
+
+
 @pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
-def test_bullet_matches_fast_to_round_off(tmp_path, integrator):
+@pytest.mark.parametrize("elements", [{}, CLOSING_AND_TETHER], ids=["net", "closing+tether"])
+def test_bullet_matches_fast_to_round_off(tmp_path, integrator, elements):
     # Reference: the fast engine with the same integrator. PyBullet's update is the same
     # semi-implicit Euler, so the two differ only by floating-point rounding.
     scene = small_scene(**{**SNAP, "net.nodes_per_side": 4, "scene.duration": 0.01,
-                           "net.fold_ratio": 0.99,
+                           "net.fold_ratio": 0.99, **elements,
                            "simulation.dt": 2e-6, "simulation.integrator": integrator})
     runs = {}
     for engine in ("fast", "bullet"):
@@ -33,6 +41,8 @@ def test_bullet_matches_fast_to_round_off(tmp_path, integrator):
             bn.run(scene.with_overrides({"simulation.engine": engine}),
                    tmp_path / f"{engine}.h5").path)
     assert runs["fast"].tension.any()  # the threads were taut: forces were exercised
+    if elements:  # and the cables and the tether
+        assert runs["fast"].cables["tension"].any() and runs["fast"].tension[:, -2:].any()
     r = bn.metrics.rmse(runs["fast"], runs["bullet"])
     assert r["rmse_pos_max"] < 1e-9
     assert r["rmse_vel_max"] < 1e-6
