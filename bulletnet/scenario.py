@@ -1,6 +1,7 @@
 """Scenes: TOML files parsed into frozen, validated dataclasses in SI units.
 
-A scene file has one table per section below. Every key has a unit (in its docstring and in
+A scene file has one table per section below (or starts from another scene, ``base = "NAME"``,
+and gives only what it changes). Every key has a unit (in its docstring and in
 ``bulletnet params``) and a default; unknown keys, wrong types and out-of-range values are
 errors naming the file, the key and what was expected. ``--set section.key=value`` overrides
 use the same validation.
@@ -527,21 +528,54 @@ def scene_names() -> list[str]:
     return sorted(q.stem for q in SCENARIO_DIR.glob("*.toml") if not _is_sweep(q))
 
 
-def loads(text: str, source: str = "<string>") -> Scenario:
-    """Parse and validate scene TOML text."""
+def _parse(text: str, source: str) -> dict:
     try:
-        doc = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{source}: malformed TOML: {exc}") from None
-    return from_dict(doc, source)
+
+
+def _merge(base: dict, doc: dict) -> dict:
+    """``doc``'s keys over ``base``'s, table by table."""
+    out = dict(base)
+    for key, value in doc.items():
+        out[key] = (_merge(base[key], value)
+                    if isinstance(value, dict) and isinstance(base.get(key), dict) else value)
+    return out
+
+
+def _with_base(doc: dict, source: str, folder: Path, seen: tuple = ()) -> dict:
+    """A scene document with its ``base`` resolved: a scene may start from another one
+    (``base = "capture"``, a name or a path relative to its own folder) and give only the
+    keys it changes."""
+    if "base" not in doc:
+        return doc
+    name = doc.pop("base")
+    if not isinstance(name, str):
+        raise ScenarioError(f"{source}: base: expected a scene name or path, got {name!r}")
+    relative = folder / name
+    path = resolve_path(str(relative) if relative.suffix == ".toml" else name)
+    if path.resolve() in seen:
+        raise ScenarioError(f"{source}: base: {name} includes itself")
+    base = _with_base(_parse(_read(path), str(path)), str(path), path.parent,
+                      (*seen, path.resolve()))
+    return _merge(base, doc)
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc}") from None
+
+
+def loads(text: str, source: str = "<string>", folder: Path = Path()) -> Scenario:
+    """Parse and validate scene TOML text (a ``base`` path relative to ``folder``)."""
+    return from_dict(_with_base(_parse(text, source), source, folder), source)
 
 
 def load(name_or_path: str, overrides: dict[str, Any] | None = None) -> Scenario:
     """Load a scene by name (``"deployment"``) or path, applying dotted-key overrides."""
     path = resolve_path(name_or_path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc}") from None
-    scenario = loads(text, str(path))
+    scenario = loads(_read(path), str(path), path.parent)
     return scenario.with_overrides(overrides) if overrides else scenario
