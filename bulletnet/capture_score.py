@@ -242,11 +242,21 @@ class OutcomeMonitor:
         the debris' body-frame origin (3,) [m], orientation (x, y, z, w) [-] and centre-of-mass
         velocity (3,) [m/s], and the nodes that touched it since the last frame [-]; return
         the frame's :class:`Score`."""
-        g, r = self.geometry, self.rules
+        g = self.geometry
         s = score(positions, origin, quaternion, g)
+        centre = origin + rotation_matrix(quaternion) @ g.center_of_mass
+        away = receding(positions[:g.net_nodes], velocities[:g.net_nodes], g.mass, centre,
+                        debris_velocity)
+        self.update(t, s, contacts, away)
+        return s
+
+    def update(self, t: float, s: Score, contacts: int, away: bool) -> None:
+        """Judge the frame at time ``t`` [s] from its score, the nodes that touched the debris
+        since the last frame [-] and whether the net moves away from it (:func:`receding`)."""
+        r = self.rules
         self._last_time = t
         if self.decided:
-            return s
+            return
         if contacts > 0:
             self._last_contact = t
         if s.enclosed >= r.enclosed_fraction and s.mouth <= r.mouth_opening:
@@ -254,19 +264,14 @@ class OutcomeMonitor:
                 self._held_from = t
             if t - self._held_from >= r.hold_time - TIME_TOLERANCE:
                 self._decide("captured", t, self._held_from)
-                return s
+                return
         else:
             self._held_from = None
         if self._last_contact is not None:
-            k = g.net_nodes
-            centre = origin + rotation_matrix(quaternion) @ g.center_of_mass
-            if (t - self._last_contact >= r.quiet_time - TIME_TOLERANCE
-                    and receding(positions[:k], velocities[:k], g.mass, centre,
-                                 debris_velocity)):
+            if t - self._last_contact >= r.quiet_time - TIME_TOLERANCE and away:
                 self._decide("escaped", t, self._last_contact)
         elif 0 < r.miss_time <= t + TIME_TOLERANCE:
             self._decide("missed", t, t)
-        return s
 
     def finish(self, completed: bool) -> None:
         """The run ended (``completed``: it reached its end, or stopped once decided): a

@@ -98,6 +98,8 @@ def test_divergence_is_typed_and_kept(tmp_path):
     (["run", "deployment", "--dt", "0"], "positive"),
     (["run", "deployment", "--dt", "0.01", "--record-rate", "1000"], "record_rate"),
     (["run", "deployment", "--record-rate", "2e6"], "record_rate"),
+    (["run", "deployment", "--set", "outcome.enabled=true"], "outcome.enabled"),
+    (["run", "capture", "--set", "outcome.enclosed_fraction=1.5"], "in (0, 1]"),
     (["compare", "missing_a.h5", "missing_b.h5"], "no such recording"),
     (["metrics", "pyproject.toml"], "not a readable HDF5"),
     (["params", "capture", "--set", "debris.asset='pyproject.toml'"], "[[parts]]"),
