@@ -160,9 +160,9 @@ def _capture_mouths(plt, recs, styles, times):
 
 def _capture_series(plt, recs, styles):
     """Nodes in contact with the debris, the wrap measure and the capture score over time;
-    a dotted line where each run's outcome was decided."""
+    a grey line (in the run's style) where each run's outcome was decided."""
     fig, axes = plt.subplots(3, 1, figsize=(6.5, 8), sharex=True)
-    for rec, style in zip(recs, styles, strict=False):
+    for row, (rec, style) in enumerate(zip(recs, styles, strict=False)):
         axes[0].plot(rec.time, metrics.nodes_in_contact(rec), style, label=_label(rec))
         axes[1].plot(rec.time, metrics.wrap(rec), style, label=_label(rec))
         scores, judged = metrics.capture_outcome(rec)
@@ -172,9 +172,9 @@ def _capture_series(plt, recs, styles):
             axes[2].plot(rec.time, scores[:, column], style, color=colour,
                          label=f"{name}, {rec.path.stem}")
         if judged.decided:
-            axes[2].axvline(judged.time, ls=":", color="0.3")
-            axes[2].annotate(f"{judged.outcome}\n{judged.time:.1f} s", (judged.time, 1.0),
-                             fontsize=7, ha="left", va="top")
+            axes[2].axvline(judged.time, ls=style, lw=0.8, color="0.3")
+            axes[2].annotate(f" {judged.outcome} at {judged.time:.1f} s",
+                             (judged.time, 0.98 - 0.1 * row), fontsize=7, va="top")
     axes[0].set_ylabel("nodes touching the debris [-]")
     axes[1].set_ylabel("wrap [-]\n(fraction of directions\ncovered by the net)")
     axes[2].set_ylabel("capture score [-]")
