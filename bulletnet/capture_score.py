@@ -43,8 +43,6 @@ SAMPLE_COUNT = 2000
 """Points sampled inside the debris for the enclosed fraction [-]."""
 SAMPLE_SEED = 2016
 """Seed of the sample (the same debris always gets the same points)."""
-OUTCOMES = ("captured", "escaped", "missed", "undecided")
-"""The outcomes of a capture."""
 TIME_TOLERANCE = 1e-9
 """Slack on the hold, quiet and miss times, against the round-off of frame times [s]."""
 
@@ -219,7 +217,7 @@ class OutcomeMonitor:
         self.rules = rules
         self.geometry = geometry
         self.outcome = "undecided"
-        """One of :data:`OUTCOMES`."""
+        """``captured``, ``escaped``, ``missed`` or ``undecided``."""
         self.time = -1.0
         """When the outcome was decided [s]; -1 while undecided."""
         self.since = -1.0

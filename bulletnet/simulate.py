@@ -182,7 +182,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
 
     stop = take_frame()
     if profile is not None:
-        instrument(profile, engine, recorder)
+        instrument(profile, engine, recorder, monitor)
     limit = speed_limit(scenario, state)
     start_position = state.position.copy()
     status, message, error = "running", "", None
