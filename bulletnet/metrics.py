@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .capture_score import OutcomeMonitor, ScoreGeometry, wrap_fraction
+from .capture_score import OutcomeMonitor, ScoreGeometry, interior_samples, wrap_fraction
 from .debris import rotation_matrix
 from .errors import RecordingError
 from .recording import Recording
@@ -189,7 +189,6 @@ def score_geometry(rec: Recording) -> ScoreGeometry:
     samples = d.get("interior_samples")
     if samples is None:
         from .builder import scene_debris
-        from .capture_score import interior_samples
 
         samples = interior_samples(scene_debris(_scene(rec)))
     return ScoreGeometry.of(rec, samples, d["attrs"]["center_of_mass"])
