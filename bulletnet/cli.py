@@ -91,7 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     metrics = sub.add_parser("metrics", help="mouth area, mouth diagonal, net height (Eq. 13); "
                              "with debris: first contact, nodes in contact, wrap, leave time, "
-                             "debris spin")
+                             "debris spin, capture score and outcome")
     metrics.add_argument("run", metavar="RUN.h5", help="a recording")
     metrics.add_argument("--json", action="store_true", help="machine-readable output, every "
                          "frame (keys carry their unit: _s, _m, _m2, _J, _deg_s)")
@@ -295,7 +295,11 @@ def cmd_run(args) -> int:
                  if progress and progress.compile_s else "")
     print(f"{result.status}: {result.frames} frames, {steps} steps, "
           f"{result.wall_time_s:.2f} s wall{compiling}, real-time factor "
-          f"{scene.scene.duration / max(result.wall_time_s, 1e-9):.3g} -> {result.path}")
+          f"{result.state.time / max(result.wall_time_s, 1e-9):.3g} -> {result.path}")
+    if result.outcome:
+        decided = (f", decided at {result.outcome_time_s:.2f} s"
+                   if result.outcome != "undecided" else "")
+        print(f"outcome: {result.outcome}{decided}")
     if profile is not None:
         from .profiling import report
 
@@ -508,17 +512,35 @@ def cmd_metrics(args) -> int:
               f"{' '.join(f'{w:.4f}' for w in spin['final_deg_s'])}")
         print(f"largest rise of the mechanical energy above its start: "
               f"{capture['max_energy_gain_J']:.3g} J (a passive model has none)")
+        print(f"capture quality at most {capture['max_capture_quality']:.3f} (at "
+              f"{capture['max_capture_quality_time_s']:.1f} s); at the end: enclosed "
+              f"{capture['enclosed_fraction'][-1]:.3f}, mouth opening "
+              f"{capture['mouth_opening'][-1]:.3f}")
+        print(f"outcome: {_outcome_text(capture)}")
     print("   time [s]  mouth area [m^2]  mouth diagonal [m]  net height [m]"
-          + ("  contacts [-]  wrap [-]" if capture else ""))
+          + ("  contacts [-]  wrap [-]  enclosed [-]  mouth [-]  quality [-]"
+             if capture else ""))
     next_t = 0.0
     for k, t in enumerate(doc["time_s"]):
         if t + 1e-9 >= next_t or k == len(doc["time_s"]) - 1:
             extra = (f" {capture['nodes_in_contact'][k]:13d} {capture['wrap'][k]:9.3f}"
-                     if capture else "")
+                     f" {capture['enclosed_fraction'][k]:13.3f}"
+                     f" {capture['mouth_opening'][k]:10.3f}"
+                     f" {capture['capture_quality'][k]:12.3f}" if capture else "")
             print(f"{t:11.3f} {doc['mouth_area_m2'][k]:17.5g} {doc['mouth_diagonal_m'][k]:19.5g} "
                   f"{doc['net_height_m'][k]:15.5g}{extra}")
             next_t = t + args.every
     return 0
+
+
+def _outcome_text(doc: dict) -> str:
+    """An outcome as a line: ``escaped, decided at 50.7 s (no contact since 45.7 s)``; the
+    keys of :func:`bulletnet.metrics.capture_summary`."""
+    outcome, decided, since = doc["outcome"], doc["outcome_time_s"], doc["outcome_since_s"]
+    cause = {"captured": f"enclosed and closed since {since:.2f} s",
+             "escaped": f"no contact since {since:.2f} s",
+             "missed": "no contact"}.get(outcome)
+    return f"{outcome}, decided at {decided:.2f} s ({cause})" if cause else outcome
 
 
 def cmd_plot(args) -> int:

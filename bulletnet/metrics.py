@@ -15,6 +15,10 @@ Capture (Sec. 5), from recordings with debris and contact:
 - wrap: the fraction of all directions from the debris' centre of mass along which a ray
   meets the net's surface (its mesh quads, two triangles each). A flat 20 m net 10 m away
   covers 0.17; a net wrapped all round, 1. Rays: a Fibonacci sphere of ``directions``;
+- the capture score (enclosed fraction, mouth opening, capture quality) over time and the
+  outcome (captured, escaped, missed, undecided) with the time it was decided: the run
+  loop's own :class:`~bulletnet.capture_score.OutcomeMonitor` on the recorded frames, under
+  the recording's ``[outcome]`` rules (docs/capture.md);
 - leave time: the end of the last frame interval with debris contact, when no contact follows
   for at least ``LEAVE_QUIET_S`` to the end of the run;
 - the debris' spin before and after: angular velocity [deg/s] at the first and last frame;
@@ -27,9 +31,9 @@ Capture (Sec. 5), from recordings with debris and contact:
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
+from .capture_score import OutcomeMonitor, ScoreGeometry, interior_samples, wrap_fraction
 from .debris import rotation_matrix
 from .errors import RecordingError
 from .recording import Recording
@@ -170,60 +174,48 @@ def leave_time(rec: Recording) -> float | None:
     return float(rec.time[hit[-1]])
 
 
-def fibonacci_sphere(count: int) -> np.ndarray:
-    """``count`` near-uniform unit vectors, shape (count, 3)."""
-    k = np.arange(count) + 0.5
-    z = 1.0 - 2.0 * k / count
-    phi = np.pi * (1.0 + 5.0**0.5) * k
-    r = np.sqrt(1.0 - z * z)
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
-
-
-def net_triangles(ns: int) -> np.ndarray:
-    """The net surface as triangles of node indices, two per mesh quad, shape (2 (Ns-1)^2, 3)."""
-    r, c = np.divmod(np.arange((ns - 1) ** 2), ns - 1)
-    a = r * ns + c
-    quads = np.stack([a, a + 1, a + ns + 1, a + ns], axis=1)
-    return np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-
-
 def wrap(rec: Recording, directions: int = 400) -> np.ndarray:
     """Fraction of directions from the debris' centre of mass whose ray meets the net's
-    surface [-], shape (T,)."""
-    rays = fibonacci_sphere(directions)
-    tri = net_triangles(rec.nodes_per_side)
+    surface [-], shape (T,) (:func:`bulletnet.capture_score.wrap_fraction`)."""
     origin = debris_center_of_mass(rec)
-    return np.array([_covered(rec.position[k] - origin[k], tri, rays)
+    return np.array([wrap_fraction(rec.position[k], rec.nodes_per_side, origin[k], directions)
                      for k in range(rec.time.size)])
 
 
-@nb.njit(cache=True)
-def _covered(points, tri, rays):
-    """Fraction of ``rays`` (R, 3) from the origin that cross a triangle ``tri`` (F, 3) of
-    ``points`` (N, 3) (Moller-Trumbore)."""
-    hits = 0
-    for r in range(rays.shape[0]):
-        dx, dy, dz = rays[r, 0], rays[r, 1], rays[r, 2]
-        for f in range(tri.shape[0]):
-            i, j, k = tri[f, 0], tri[f, 1], tri[f, 2]
-            ax, ay, az = points[i, 0], points[i, 1], points[i, 2]
-            e1x, e1y, e1z = points[j, 0] - ax, points[j, 1] - ay, points[j, 2] - az
-            e2x, e2y, e2z = points[k, 0] - ax, points[k, 1] - ay, points[k, 2] - az
-            px, py, pz = dy * e2z - dz * e2y, dz * e2x - dx * e2z, dx * e2y - dy * e2x
-            det = px * e1x + py * e1y + pz * e1z
-            if abs(det) < 1e-15:
-                continue
-            u = -(ax * px + ay * py + az * pz) / det
-            if u < 0.0 or u > 1.0:
-                continue
-            qx, qy, qz = -(ay * e1z - az * e1y), -(az * e1x - ax * e1z), -(ax * e1y - ay * e1x)
-            v = (dx * qx + dy * qy + dz * qz) / det
-            if v < 0.0 or u + v > 1.0:
-                continue
-            if (e2x * qx + e2y * qy + e2z * qz) / det > 0.0:
-                hits += 1
-                break
-    return hits / rays.shape[0]
+def score_geometry(rec: Recording) -> ScoreGeometry:
+    """The net and debris data of the capture score (:mod:`bulletnet.capture_score`): the
+    points inside the debris recorded with the run (``/debris/interior_samples``), or, for a
+    recording without them, drawn again from the scene's debris asset."""
+    d = _require(rec, "debris")
+    samples = d.get("interior_samples")
+    if samples is None:
+        from .builder import scene_debris
+
+        samples = interior_samples(scene_debris(_scene(rec)))
+    return ScoreGeometry.of(rec, samples, d["attrs"]["center_of_mass"])
+
+
+def _scene(rec: Recording):
+    """The scene a recording ran (its ``scenario`` attribute)."""
+    from .scenario import loads
+
+    return loads(str(rec.attrs["scenario"]), f"{rec.path} (scenario attribute)")
+
+
+def capture_outcome(rec: Recording) -> tuple[np.ndarray, OutcomeMonitor]:
+    """The capture score of every frame, columns enclosed fraction, mouth opening and capture
+    quality [-], shape (T, 3), and the outcome monitor after the last frame, judged by the
+    recording's own ``[outcome]`` rules: the same monitor, on the same frames, as the run's
+    (a run that judged itself recorded the same ``outcome`` and ``outcome_time_s``)."""
+    d = _require(rec, "debris")
+    count = _require(rec, "contacts")["count"]
+    monitor = OutcomeMonitor(_scene(rec).outcome, score_geometry(rec))
+    scores = np.array([monitor.observe(float(rec.time[k]), rec.position[k], rec.velocity[k],
+                                       d["position"][k], d["orientation"][k],
+                                       d["velocity"][k], int(count[k]))
+                       for k in range(rec.time.size)])
+    monitor.finish(rec.status == "completed")
+    return scores, monitor
 
 
 def energy(rec: Recording) -> np.ndarray:
@@ -271,11 +263,15 @@ def capture_summary(rec: Recording) -> dict:
     """Capture measures (JSON-ready, units in the keys): first-contact and leave times,
     peak nodes in contact and wrap, the debris' spin change, the largest rise of the
     mechanical energy above its start plus the winches' work (:func:`energy`,
-    :func:`winch_work`; a sound run has none), and the time series."""
+    :func:`winch_work`; a sound run has none), the outcome (:func:`capture_outcome`:
+    ``outcome``, ``outcome_time_s`` when decided and ``outcome_since_s`` when its condition
+    began, -1 while undecided), the highest capture quality, and the time series."""
     count = nodes_in_contact(rec)
     wrapped = wrap(rec)
     k = int(np.argmax(wrapped))
     total = energy(rec)
+    scores, judged = capture_outcome(rec)
+    best = int(np.argmax(scores[:, 2]))
     return {
         "first_contact_s": first_contact_time(rec),
         "first_self_contact_s": (float(rec.attrs["first_self_contact_s"])
@@ -285,7 +281,14 @@ def capture_summary(rec: Recording) -> dict:
         "max_wrap": float(wrapped[k]), "max_wrap_time_s": float(rec.time[k]),
         "spin": spin(rec),
         "max_energy_gain_J": float(np.max(total - total[0] - winch_work(rec))),
+        "outcome": judged.outcome, "outcome_time_s": judged.time,
+        "outcome_since_s": judged.since,
+        "max_capture_quality": float(scores[best, 2]),
+        "max_capture_quality_time_s": float(rec.time[best]),
         "nodes_in_contact": count.astype(int).tolist(),
         "normal_force_N": rec.contacts["normal_force"].tolist(),
         "wrap": wrapped.tolist(),
+        "enclosed_fraction": scores[:, 0].tolist(),
+        "mouth_opening": scores[:, 1].tolist(),
+        "capture_quality": scores[:, 2].tolist(),
     }

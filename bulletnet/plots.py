@@ -8,7 +8,8 @@
 - ``corner_thread.png``: tension and shear in a corner thread on a log axis (Fig. 9);
 - with debris: ``mouth.png`` has one panel per time with the debris' long axis (grey, its
   x-y projection through the body origin; Fig. 11), and ``capture.png`` plots nodes in
-  contact and the wrap measure over time.
+  contact, the wrap measure and the capture score (enclosed fraction, mouth opening, capture
+  quality; :mod:`bulletnet.capture_score`) over time, with the time each outcome was decided.
 """
 
 from __future__ import annotations
@@ -158,15 +159,28 @@ def _capture_mouths(plt, recs, styles, times):
 
 
 def _capture_series(plt, recs, styles):
-    """Nodes in contact with the debris and the wrap measure over time."""
-    fig, axes = plt.subplots(2, 1, figsize=(6.5, 5.5), sharex=True)
-    for rec, style in zip(recs, styles, strict=False):
+    """Nodes in contact with the debris, the wrap measure and the capture score over time;
+    a grey line (in the run's style) where each run's outcome was decided."""
+    fig, axes = plt.subplots(3, 1, figsize=(6.5, 8), sharex=True)
+    for row, (rec, style) in enumerate(zip(recs, styles, strict=False)):
         axes[0].plot(rec.time, metrics.nodes_in_contact(rec), style, label=_label(rec))
         axes[1].plot(rec.time, metrics.wrap(rec), style, label=_label(rec))
+        scores, judged = metrics.capture_outcome(rec)
+        for column, (name, colour) in enumerate((("enclosed fraction", "C2"),
+                                                 ("mouth opening", "C1"),
+                                                 ("capture quality", "C0"))):
+            axes[2].plot(rec.time, scores[:, column], style, color=colour,
+                         label=f"{name}, {rec.path.stem}")
+        if judged.decided:
+            axes[2].axvline(judged.time, ls=style, lw=0.8, color="0.3")
+            axes[2].annotate(f" {judged.outcome} at {judged.time:.1f} s",
+                             (judged.time, 0.98 - 0.1 * row), fontsize=7, va="top")
     axes[0].set_ylabel("nodes touching the debris [-]")
     axes[1].set_ylabel("wrap [-]\n(fraction of directions\ncovered by the net)")
-    axes[1].set_xlabel("time [s]")
+    axes[2].set_ylabel("capture score [-]")
+    axes[2].set_xlabel("time [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
+    axes[2].legend(fontsize=7, loc="center right")
     return fig

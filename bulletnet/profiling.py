@@ -4,7 +4,8 @@ Two honest measurements, both off unless asked for:
 
 1. **Sections of the run loop**, timed from outside: the engine's ``advance`` (forces and
    integration, fused in one compiled loop), ``thread_loads`` (the tensions recorded each
-   frame), the recorder's ``append`` and its HDF5 ``flush``. :meth:`Profile.wrap`
+   frame), the recorder's ``append`` and its HDF5 ``flush``, and the outcome monitor's
+   ``observe`` (the capture score of each frame, scenes with ``[outcome]`` on). :meth:`Profile.wrap`
    replaces those methods on the instances for the run, each section timed exclusive of the
    sections it calls (a flush inside an append counts as I/O, not recording).
 2. **The split inside the compiled step**, from a short calibration after the run on a copy
@@ -75,15 +76,18 @@ ENGINE = "engine step"
 LOADS = "thread loads (recorded tensions)"
 RECORDING = "recording (HDF5 append)"
 IO = "I/O (HDF5 flush)"
+OUTCOME = "capture score (outcome monitor)"
 
 
-def instrument(profile: Profile, engine, recorder) -> None:
+def instrument(profile: Profile, engine, recorder, monitor=None) -> None:
     """Time the run's sections (see the module doc) on these instances."""
     profile.wrap(engine, "advance", ENGINE)
     profile.wrap(engine, "thread_loads", LOADS)
     if recorder is not None:
         profile.wrap(recorder, "append", RECORDING)
         profile.wrap(recorder, "flush", IO)
+    if monitor is not None:
+        profile.wrap(monitor, "observe", OUTCOME)
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -183,7 +187,8 @@ def report(profile: Profile, total_s: float, contact: bool) -> list[str]:
             rows.append(("contact (collision, normal law, friction)", engine * touch))
     else:
         rows.append((ENGINE + " (adaptive: not split)", engine))
-    rows += [(name, sections.get(name, 0.0)) for name in (LOADS, RECORDING, IO)]
+    rows += [(name, sections.get(name, 0.0)) for name in (LOADS, RECORDING, IO, OUTCOME)
+             if name != OUTCOME or OUTCOME in sections]
     rows.append(("other (divergence checks, progress)",
                  max(0.0, total_s - engine - sum(sections.values()))))
     lines = [f"profile: {total_s:.3f} s wall in the run loop"]

@@ -27,6 +27,9 @@ path                      shape         meaning
 /debris/angular_velocity  (T, 3)        world frame [rad/s]
 /debris/mesh_vertices     (V, 3)        visual mesh, every part at its pose, body frame [m]
 /debris/mesh_faces        (F, 3)        its triangles (vertex indices) [-]
+/debris/interior_samples  (M, 3)        points drawn uniformly inside the debris, body
+                                        frame [m]: the capture score's sample
+                                        (:func:`bulletnet.capture_score.interior_samples`)
 /contacts/count           (T,)          nodes that touched the debris in the interval
                                         ending at the frame [-] (scenes with contact)
 /contacts/normal_force    (T,)          total normal force on the debris, mean over
@@ -51,7 +54,9 @@ Root attributes: ``scenario`` (the TOML as run, overrides applied), ``engine``,
 ``integrator``, ``dt`` [s], ``record_rate`` [Hz], ``bending``, ``status`` (running /
 completed / interrupted / diverged), ``message``, ``wall_time_s`` [s], ``bulletnet_version``,
 ``format_version``, ``nodes_per_side``; with contact ``first_contact_s`` and
-``first_self_contact_s`` [s] (to the step; -1: none). ``/debris`` carries ``mass`` [kg],
+``first_self_contact_s`` [s] (to the step; -1: none); with ``[outcome]`` on, ``outcome``
+(captured, escaped, missed or undecided) and ``outcome_time_s``, when it was decided [s]
+(-1: undecided). ``/debris`` carries ``mass`` [kg],
 ``inertia`` [kg m^2] (3, 3) about the centre of mass and ``center_of_mass`` [m] (body frame).
 
 The file is written as ``NAME.part`` in SWMR mode. Frames are kept in memory and written,
@@ -86,7 +91,8 @@ class Recorder:
 
     def __init__(self, path: str | os.PathLike, model: NetModel, attrs: dict,
                  oriented: bool = False, flush_interval: float = FLUSH_INTERVAL_S,
-                 debris=None, contact: bool = False):
+                 debris=None, contact: bool = False,
+                 interior_samples: np.ndarray | None = None):
         import h5py
 
         self.path = Path(path)
@@ -143,6 +149,8 @@ class Recorder:
             vertices, faces = visual_mesh(debris)
             static("debris/mesh_vertices", vertices, "m")
             static("debris/mesh_faces", faces, "1")
+            if interior_samples is not None:
+                static("debris/interior_samples", interior_samples, "m")
             group = f["debris"]
             group.attrs["mass"] = debris.mass
             group.attrs["inertia"] = debris.inertia

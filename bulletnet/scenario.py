@@ -296,6 +296,29 @@ class Simulation:
 
 
 @dataclass(frozen=True)
+class OutcomeRules:
+    enabled: bool = _f(False, "-")
+    """Judge the capture while the run goes and record its ``outcome`` and ``outcome_time_s``
+    (needs debris and contact; docs/capture.md, "Capture score and outcome"). Off, a
+    recording's outcome is still computed afterwards by ``bulletnet metrics``."""
+    enclosed_fraction: float = _f(0.9, "-", "(0,1]")
+    """``captured`` needs at least this share of the debris' volume inside the convex hull
+    of the net's nodes [-], with the mouth closed (``mouth_opening``), held ``hold_time``."""
+    mouth_opening: float = _f(0.25, "-", ">=0")
+    """``captured`` needs the mouth at most this open [-]: the largest distance between two
+    perimeter nodes over the deployed net's diagonal (0.25: 7.1 m on the 20 m capture net)."""
+    hold_time: float = _f(10.0, "s", ">=0")
+    """``captured`` needs both conditions on every frame over this long [s]."""
+    quiet_time: float = _f(5.0, "s", ">=0")
+    """``escaped``: after touching the debris, no contact for this long [s], with the net's
+    centre of mass moving away from the debris'."""
+    miss_time: float = _f(0.0, "s", ">=0")
+    """``missed``: no contact by this time [s]; 0: by the end of the run."""
+    stop_when_decided: bool = _f(False, "-")
+    """End the run (status ``completed``) at the frame that decides the outcome."""
+
+
+@dataclass(frozen=True)
 class Scenario:
     scene: Scene = field(default_factory=Scene)
     net: Net = field(default_factory=Net)
@@ -310,6 +333,7 @@ class Scenario:
     closing: Closing = field(default_factory=Closing)
     tether: Tether = field(default_factory=Tether)
     simulation: Simulation = field(default_factory=Simulation)
+    outcome: OutcomeRules = field(default_factory=OutcomeRules)
     source: str = field(default="<defaults>", compare=False)
     """Where the scene came from (file path or name), for error messages."""
 
@@ -426,6 +450,9 @@ def _check_consistency(s: Scenario) -> None:
     if s.closing.enabled and s.simulation.engine == "reference":
         raise ScenarioError(f"{s.source}: closing.enabled: the reference engine has no "
                             "winches; use --engine fast or bullet")
+    if s.outcome.enabled and not (s.debris.asset and s.contact.enabled):
+        raise ScenarioError(f"{s.source}: outcome.enabled: judging a capture needs debris "
+                            "(debris.asset) and contact (contact.enabled)")
 
 
 def to_dict(s: Any) -> dict:

@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from .builder import build_model, initial_state
+from .capture_score import OutcomeMonitor, ScoreGeometry, interior_samples
+from .debris import body_origin
 from .engines import make_engine
 from .errors import DivergenceError, ScenarioError
 from .profiling import Profile, instrument, step_split
@@ -44,6 +46,11 @@ class RunResult:
     """Engine counters (steps, solver iterations)."""
     frames: int
     """Frames recorded [-]."""
+    outcome: str = ""
+    """The capture's outcome in a scene with ``[outcome]`` on (captured, escaped, missed or
+    undecided; :class:`~bulletnet.capture_score.OutcomeMonitor`); "" otherwise."""
+    outcome_time_s: float = -1.0
+    """When the outcome was decided [s]; -1 if undecided or not judged."""
 
 
 def frame_times(duration: float, record_rate: float) -> np.ndarray:
@@ -136,11 +143,17 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
     An existing ``out``, or a recording estimated above :data:`MAX_RECORDING_BYTES`, is an
     error unless ``force``. On Ctrl-C the recording is closed with
     status ``interrupted`` and KeyboardInterrupt is re-raised; on divergence with status
-    ``diverged`` and :class:`DivergenceError` is re-raised. Every frame so far is kept."""
+    ``diverged`` and :class:`DivergenceError` is re-raised. Every frame so far is kept.
+    With ``[outcome]`` on, each frame is judged (:mod:`bulletnet.capture_score`) and the
+    recording gets ``outcome`` and ``outcome_time_s``; with ``stop_when_decided`` the run
+    ends, ``completed``, at the frame that decides it."""
     model = preflight(scenario, out, force)
     state = initial_state(scenario, model)
     engine = make_engine(scenario, model)
     times = frame_times(scenario.scene.duration, scenario.simulation.record_rate)
+    samples = None if engine.debris is None else interior_samples(engine.debris)
+    monitor = (OutcomeMonitor(scenario.outcome, ScoreGeometry.of(
+        model, samples, engine.debris.center_of_mass)) if scenario.outcome.enabled else None)
     recorder = None
     if out is not None:
         recorder = Recorder(out, model, {
@@ -151,27 +164,41 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             "record_rate": scenario.simulation.record_rate,
             "bending": scenario.bending.enabled,
             "bulletnet_version": _version(),
-        }, oriented=state.oriented, debris=engine.debris,
+        }, oriented=state.oriented, debris=engine.debris, interior_samples=samples,
             contact=scenario.contact.enabled)
-        recorder.append(state, *engine.thread_loads(state), engine.contact_loads(),
-                        engine.cable_loads())
+
+    def take_frame() -> bool:
+        """Record the frame just reached and show it to the monitor; True: the run stops here
+        (its outcome is decided and the scene asks to stop then)."""
+        contacts = engine.contact_loads()
+        if recorder is not None:
+            recorder.append(state, *engine.thread_loads(state), contacts,
+                            engine.cable_loads())
+        if monitor is None:
+            return False
+        monitor.observe(state.time, state.position, state.velocity,
+                        body_origin(state.debris, engine.debris), state.debris[3:7],
+                        state.debris[7:10], int(np.count_nonzero(contacts["node_force"])))
+        return monitor.decided and scenario.outcome.stop_when_decided
+
+    stop = take_frame()
     if profile is not None:
-        instrument(profile, engine, recorder)
+        instrument(profile, engine, recorder, monitor)
     limit = speed_limit(scenario, state)
     start_position = state.position.copy()
     status, message, error = "running", "", None
     start = _time.perf_counter()
     try:
         for t in times[1:]:
+            if stop:
+                break
             engine.advance(state, float(t))
             reason = _check(state, limit)
             if reason:
                 raise _divergence(reason, state, engine.dt, engine.integrator,
                                   analytical_limits(model, start_position,
                                                     scenario.bending.enabled))
-            if recorder is not None:
-                recorder.append(state, *engine.thread_loads(state), engine.contact_loads(),
-                                engine.cable_loads())
+            stop = take_frame()
             if progress is not None:
                 progress(state.time, scenario.scene.duration, _time.perf_counter() - start)
         status = "completed"
@@ -185,6 +212,10 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             status, message = "interrupted", "stopped by an internal error"
         stats = engine.stats()
         first = engine.contact_loads()["first_contact"]
+        outcome_attrs = {}
+        if monitor is not None:
+            monitor.finish(status == "completed")
+            outcome_attrs = {"outcome": monitor.outcome, "outcome_time_s": monitor.time}
         if profile is not None:
             profile.stop()
             if status == "completed":
@@ -198,11 +229,13 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
                 contact_attrs = ({"first_contact_s": first[0], "first_self_contact_s": first[1]}
                                  if scenario.contact.enabled else {})
                 path = recorder.close(status, message, wall_time_s=wall, **contact_attrs,
+                                      **outcome_attrs,
                                       **{f"stats_{k}": v for k, v in stats.items()})
     if error is not None:
         raise error
     return RunResult(path=path, status=status, state=state, wall_time_s=wall, stats=stats,
-                     frames=frames)
+                     frames=frames, outcome=monitor.outcome if monitor else "",
+                     outcome_time_s=monitor.time if monitor else -1.0)
 
 
 def _version() -> str:

@@ -29,6 +29,7 @@ wrap = bn.metrics.wrap(rec)                         # share of directions the ne
 leave = bn.metrics.leave_time(rec)                  # [s], None if it did not let go
 gain = bn.metrics.energy(rec) - bn.metrics.energy(rec)[0]   # [J]: a passive model never gains
 spin = bn.metrics.spin(rec)                         # the debris' angular velocity [deg/s]
+scores, judged = bn.metrics.capture_outcome(rec)    # capture score (T, 3) [-], the outcome
 
 print(f"first contact: {'never' if first is None else f'{first:.3f} s'}")
 print(f"nodes touching at once, at most: {touching.max():.0f}")
@@ -37,3 +38,8 @@ print(f"net left the debris: {'not within the run' if leave is None else f'{leav
 print(f"largest rise of the mechanical energy above its start: {gain.max():.3g} J")
 print(f"debris spin: {np.linalg.norm(spin['initial_deg_s']):.3f} -> "
       f"{np.linalg.norm(spin['final_deg_s']):.3f} deg/s")
+print(f"capture quality, at most: {scores[:, 2].max():.2f} (enclosed fraction "
+      f"{scores[:, 0].max():.2f}, mouth opening down to {scores[:, 1].min():.2f})")
+print(f"outcome: {judged.outcome}"
+      + (f", decided at {judged.time:.1f} s" if judged.decided else "")
+      + f" (the run judged itself: {result.outcome})")

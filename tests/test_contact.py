@@ -211,15 +211,15 @@ def test_wrap_of_a_flat_net_is_its_solid_angle():
     # Reference: the solid angle of a square of side a seen from distance d on its axis,
     # Omega = 4 arcsin(a^2 / (a^2 + 4 d^2)), over 4 pi; and a plane far wider than its
     # distance covers half of all directions.
-    from bulletnet.metrics import _covered, fibonacci_sphere, net_triangles
+    from bulletnet.capture_score import wrap_fraction
 
-    ns, rays = 21, fibonacci_sphere(4000)
+    ns = 21
     for side, expected in ((20.0, 4 * math.asin(400.0 / 800.0) / (4 * math.pi)),
                            (2e4, 4 * math.asin(4e8 / (4e8 + 400.0)) / (4 * math.pi))):
         r, c = np.divmod(np.arange(ns * ns), ns)
         points = np.stack([(c / (ns - 1) - 0.5) * side, (r / (ns - 1) - 0.5) * side,
                            np.full(ns * ns, -10.0)], axis=1)
-        assert _covered(points, net_triangles(ns), rays) == pytest.approx(expected, abs=2e-3)
+        assert wrap_fraction(points, ns, np.zeros(3), 4000) == pytest.approx(expected, abs=2e-3)
 
 
 def test_implicit_law_ends_an_impact_inelastically():

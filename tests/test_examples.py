@@ -40,6 +40,8 @@ def test_capture(tmp_path):
     # the head-on variant touches at 1.52 s (README, fast against bullet) and stays passive
     assert "first contact: 1.52" in out
     assert "above its start: 0 J" in out
+    # judged from the recording as the run judged itself: still touching at 2.5 s
+    assert "outcome: undecided (the run judged itself: undecided)" in out
 
 
 def test_sweep(tmp_path):

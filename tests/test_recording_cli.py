@@ -88,7 +88,8 @@ def test_divergence_is_typed_and_kept(tmp_path):
 
 
 @pytest.mark.parametrize(("args", "needle"), [
-    (["run", "nosuchscene"], "named scenes: cantilever, capture, capture_envisat, deployment)"),
+    (["run", "nosuchscene"],
+     "named scenes: cantilever, capture, capture_closing, capture_envisat, deployment)"),
     (["run", "sweep_example"], "a sweep file, not a scene; run it with `bulletnet sweep"),
     (["run", "deployment", "--set", "net.colour=3"], "unknown key"),
     (["run", "deployment", "--set", "net.nodes_per_side=1"], "nodes_per_side"),
@@ -98,6 +99,8 @@ def test_divergence_is_typed_and_kept(tmp_path):
     (["run", "deployment", "--dt", "0"], "positive"),
     (["run", "deployment", "--dt", "0.01", "--record-rate", "1000"], "record_rate"),
     (["run", "deployment", "--record-rate", "2e6"], "record_rate"),
+    (["run", "deployment", "--set", "outcome.enabled=true"], "outcome.enabled"),
+    (["run", "capture", "--set", "outcome.enclosed_fraction=1.5"], "in (0, 1]"),
     (["compare", "missing_a.h5", "missing_b.h5"], "no such recording"),
     (["metrics", "pyproject.toml"], "not a readable HDF5"),
     (["params", "capture", "--set", "debris.asset='pyproject.toml'"], "[[parts]]"),

@@ -126,6 +126,18 @@ def test_mouth_panel_draws_bulletnet_metrics(runs):
     assert svg.count('class="snapshot"') == 2 * 2 and 'id="mouth-1"' in svg
 
 
+def test_panel_plots_the_capture_score_and_names_the_outcome(runs):
+    # reference: bulletnet.metrics.capture_outcome on the recording; a deployment has none
+    replay = load_replay([runs["capture"], runs["plain"]])
+    panel = Panel(replay, [0.5])
+    scores, judged = bn.metrics.capture_outcome(bn.open_recording(runs["capture"]))
+    k = replay.time.size - 1
+    quality, none = panel.updates(k)["value-quality"]["text"].split(" / ")
+    assert float(quality) == pytest.approx(scores[replay.index[0, k], 2], abs=5e-4)
+    assert none.startswith("-")
+    assert judged.outcome in panel.svg(k) and replay.tracks[1].score is None
+
+
 def test_a_new_frame_sends_only_what_moved(runs):
     # reference: the static geometry (sphere and debris meshes, radii) was sent once; a frame
     # change may only update props, and showing the same frame sends nothing

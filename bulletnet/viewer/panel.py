@@ -1,6 +1,8 @@
 """The mouth panel as SVG (Figs. 6 and 11): the mouth shape (x-y projection of the perimeter
 nodes) of every recording at the current time over snapshot outlines at chosen times, then
-mouth area and net height (Eq. 13) against time with a cursor.
+mouth area, net height (Eq. 13) and, for captures, the capture score (capture quality solid,
+enclosed fraction dashed, mouth opening dotted; :mod:`bulletnet.capture_score`) against time
+with a cursor; the legend gives each capture's outcome.
 
 One renderer for both viewers: :meth:`Panel.svg` is the whole figure at a frame (the live
 server sends it on each new frame), :meth:`Panel.updates` the attributes that change from
@@ -21,6 +23,11 @@ PLOT_HEIGHT = 100
 """Height of each time plot [px]."""
 MARGIN = 34
 """Room for axis labels [px]."""
+PLOT_GAP = 26
+"""Space between two time plots, for the axis labels [px]."""
+SCORE_CURVES = ((0, "5 3"), (1, "1.5 2.5"))
+"""Score columns drawn thin beside the capture quality: (column of ``Track.score``, SVG dash
+pattern): the enclosed fraction dashed, the mouth opening dotted."""
 
 
 def _attrs(attrs: dict) -> str:
@@ -84,13 +91,22 @@ class Panel:
         t0, t1 = float(replay.time[0]), float(replay.time[-1])
         tlim = (t0, t1 if t1 > t0 else t0 + 1.0)
         top = legend + size + 24
+        plots = [("area", "mouth area [m^2]"), ("height", "net height [m]")]
+        if replay.has_score:
+            plots.append(("quality", "capture score [-]"))
         self.time_axes = [
-            (name, unit, _Axes((MARGIN, y, size, PLOT_HEIGHT), tlim,
-                               _limits([getattr(t, name) for t in tracks])))
-            for name, unit, y in (("area", "mouth area [m^2]", top),
-                                  ("height", "net height [m]", top + PLOT_HEIGHT + 26))]
-        self.height = top + 2 * PLOT_HEIGHT + 44
+            (name, unit, _Axes((MARGIN, top + i * (PLOT_HEIGHT + PLOT_GAP), size, PLOT_HEIGHT),
+                               tlim, _limits(self._values(name))))
+            for i, (name, unit) in enumerate(plots)]
+        self.height = top + len(plots) * (PLOT_HEIGHT + PLOT_GAP) + 18 - PLOT_GAP
         self._still = "".join(self._static())
+
+    def _values(self, name: str) -> list[np.ndarray]:
+        """Every value a time plot draws: the tracks' ``name`` series (for the score, all
+        its columns)."""
+        if name == "quality":
+            return [t.score for t in self.replay.tracks if t.score is not None]
+        return [getattr(t, name) for t in self.replay.tracks]
 
     def _static(self) -> list[str]:
         """Everything that does not move: axes, curves against time, snapshots, legend."""
@@ -105,14 +121,21 @@ class Panel:
                 if r == 0:
                     out.append(f'<text x="{xy[0, 0]:.1f}" y="{xy[0, 1] + 11:.1f}" '
                                f'font-size="9" fill="#555">{track.time[k]:.2f} s</text>')
+            label = track.label + (f": {track.outcome}" if track.outcome else "")
             out.append(f'<text x="4" y="{12 + 14 * r}" font-size="11" '
-                       f'fill="{colour}">{escape(track.label)}</text>')
+                       f'fill="{colour}">{escape(label)}</text>')
         for name, unit, axes in self.time_axes:
             out += axes.frame("t [s]", unit)
             for track in self.replay.tracks:
-                xy = axes(track.time, getattr(track, name))
-                out.append(f'<polyline points="{_points(xy)}" fill="none" stroke-width="1.5" '
-                           'stroke="rgb({},{},{})"/>'.format(*track.colour))
+                if getattr(track, name) is None:
+                    continue
+                colour = "rgb({},{},{})".format(*track.colour)
+                out.append(f'<polyline points="{_points(axes(track.time, getattr(track, name)))}"'
+                           f' fill="none" stroke-width="1.5" stroke="{colour}"/>')
+                if name == "quality":
+                    out += [f'<polyline points="{_points(axes(track.time, track.score[:, c]))}" '
+                            f'fill="none" stroke-width="1" stroke="{colour}" '
+                            f'stroke-dasharray="{dash}"/>' for c, dash in SCORE_CURVES]
         return out
 
     def _dynamic(self) -> list[tuple[str, str, dict]]:
@@ -143,7 +166,8 @@ class Panel:
         for name, unit, axes in self.time_axes:
             x = float(axes(t, 0.0)[0])
             out[f"cursor-{name}"] = {"x1": f"{x:.1f}", "x2": f"{x:.1f}"}
-            values = " / ".join(f"{getattr(tr, name)[replay.index[r, k]]:.3g}"
+            values = " / ".join("-" if getattr(tr, name) is None
+                                else f"{getattr(tr, name)[replay.index[r, k]]:.3g}"
                                 for r, tr in enumerate(replay.tracks))
             out[f"value-{name}"] = {"text": f"{values} {unit.split()[-1]}"}
         return out

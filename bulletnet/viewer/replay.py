@@ -1,7 +1,7 @@
 """What a replay shows, as arrays: recordings decimated onto one shared timeline, the capture
-groups (debris pose and mesh, contacts) when a recording has them, the paper's measures from
-:mod:`bulletnet.metrics`, and the colours. No viser here: the live server and the HTML export
-both draw from a :class:`Replay`.
+groups (debris pose and mesh, contacts) when a recording has them, the paper's measures and
+the capture score and outcome from :mod:`bulletnet.metrics`, and the colours. No viser here:
+the live server and the HTML export both draw from a :class:`Replay`.
 """
 
 from __future__ import annotations
@@ -81,6 +81,16 @@ class Track:
     """Net height, Eq. 13 [m], shape (T,)."""
     debris: DebrisTrack | None
     contacts: ContactTrack | None
+    score: np.ndarray | None = None
+    """Capture score: enclosed fraction, mouth opening, capture quality [-], shape (T, 3);
+    None without debris and contacts (:func:`bulletnet.metrics.capture_outcome`)."""
+    outcome: str = ""
+    """The capture's outcome and when it was decided, as text; "" without a score."""
+
+    @property
+    def quality(self) -> np.ndarray | None:
+        """Capture quality [-], shape (T,); None without a score."""
+        return None if self.score is None else self.score[:, 2]
 
     @property
     def corner_masses(self) -> np.ndarray:
@@ -115,6 +125,10 @@ class Replay:
     @property
     def has_contacts(self) -> bool:
         return any(t.contacts is not None for t in self.tracks)
+
+    @property
+    def has_score(self) -> bool:
+        return any(t.score is not None for t in self.tracks)
 
     @property
     def has_bending(self) -> bool:
@@ -190,13 +204,20 @@ def make_track(rec: Recording, colour: tuple[int, int, int], every: int) -> Trac
     frames = np.unique(np.append(np.arange(0, rec.time.size, every), rec.time.size - 1))
     bending = rec.orientation is not None
     debris, contacts = read_capture(rec, frames)
+    score, outcome = None, ""
+    if debris is not None and contacts is not None:
+        scores, judged = metrics.capture_outcome(rec)
+        score = scores[frames]
+        outcome = (f"{judged.outcome} at {judged.time:.1f} s" if judged.decided
+                   else judged.outcome)
     return Track(
         label=f"{rec.path.stem} ({'with' if bending else 'no'} bending)",
         colour=colour, time=rec.time[frames], position=rec.position[frames],
         tension=rec.tension[frames], shear=rec.shear[frames] if bending else None,
         radius=rec.radius, kind=rec.kind, pairs=rec.pairs,
         mouth=metrics.mouth(rec)[frames], area=metrics.mouth_area(rec)[frames],
-        height=metrics.net_height(rec)[frames], debris=debris, contacts=contacts)
+        height=metrics.net_height(rec)[frames], debris=debris, contacts=contacts,
+        score=score, outcome=outcome)
 
 
 def _scale(values: list[np.ndarray]) -> float:

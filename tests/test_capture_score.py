@@ -1,0 +1,222 @@
+"""The capture score and outcome (bulletnet.capture_score): the score against closed forms,
+the outcome rules on synthetic time series, and real runs judged while they go, stopped once
+decided, and judged again from their recordings alone."""
+
+from __future__ import annotations
+
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+import bulletnet as bn
+from bulletnet.capture_score import (
+    SAMPLE_COUNT,
+    OutcomeMonitor,
+    Score,
+    enclosed_fraction,
+    fibonacci_sphere,
+    interior_samples,
+    mouth_opening,
+)
+from bulletnet.debris import Part, make_debris, rotation_matrix, rotation_quaternion
+from bulletnet.scenario import OutcomeRules
+from bulletnet.topology import perimeter
+from tests.conftest import small_capture
+
+
+def three_sigma(p: float) -> float:
+    """Three standard deviations of a share p estimated from SAMPLE_COUNT independent uniform
+    points (binomial: sqrt(p (1 - p) / M))."""
+    return 3.0 * math.sqrt(p * (1.0 - p) / SAMPLE_COUNT)
+
+
+def flat_net(ns: int, mesh: float) -> np.ndarray:
+    """A deployed flat square net in the plane z = 0, centred on the origin, and its four
+    corner masses one mesh length out along the diagonals [m], shape (Ns^2 + 4, 3)."""
+    r, c = np.divmod(np.arange(ns * ns), ns)
+    half = 0.5 * (ns - 1) * mesh
+    net = np.stack([c * mesh - half, r * mesh - half, np.zeros(ns * ns)], axis=1)
+    corners = net[[0, ns - 1, ns * ns - ns, ns * ns - 1]] * (1.0 + mesh / half)
+    return np.vstack([net, corners])
+
+
+@pytest.fixture(scope="module")
+def csm():
+    debris = bn.load_debris("apollo_csm")
+    return debris, interior_samples(debris)
+
+
+def test_samples_are_seeded_and_inside_the_debris(csm):
+    # reference: the debris' own signed distance (the contact query), negative inside
+    from bulletnet.contact import debris_geometry
+    from bulletnet.forces.contact import debris_distance
+
+    debris, samples = csm
+    assert samples.shape == (SAMPLE_COUNT, 3)
+    np.testing.assert_array_equal(samples, interior_samples(debris))  # the same every time
+    rows, mesh = debris_geometry(debris.parts)
+    normal = np.empty(3)
+    assert all(debris_distance(p, np.zeros(3), np.eye(3), rows, mesh, normal) < 0
+               for p in samples)
+
+
+def test_debris_inside_a_closed_spherical_net_is_wholly_enclosed(csm):
+    # reference: the convex hull of points on a sphere of radius R, no two neighbours more
+    # than an angle d apart, holds the concentric ball of radius R cos d. 445 Fibonacci
+    # points on a 10 m sphere are ~0.17 rad apart: the ball of 9.8 m holds the CSM, whose
+    # parts lie within its reach of the centre of mass
+    debris, samples = csm
+    reach = max(p.reach(debris.center_of_mass) for p in debris.parts)
+    assert reach < 9.0
+    q = rotation_quaternion(np.radians([20.0, -35.0, 50.0]))
+    origin = np.array([3.0, -2.0, 7.0])
+    centre = origin + rotation_matrix(q) @ debris.center_of_mass
+    nodes = centre + 10.0 * fibonacci_sphere(21 * 21 + 4)
+    assert enclosed_fraction(nodes, samples, origin, rotation_matrix(q)) == 1.0
+
+
+def test_debris_far_from_a_net_or_across_a_flat_one_is_not_enclosed(csm):
+    # reference: a flat net spans no volume (its hull is a polygon), and a cupped net 100 m
+    # away holds no point of the debris
+    debris, samples = csm
+    net = flat_net(21, 1.0)
+    assert enclosed_fraction(net, samples, np.zeros(3), np.eye(3)) == 0.0  # through the CSM
+    cup = net + [0.0, 0.0, 100.0]
+    cup[:, 2] -= 0.05 * (cup[:, 0] ** 2 + cup[:, 1] ** 2)
+    assert enclosed_fraction(cup, samples, np.zeros(3), np.eye(3)) == 0.0
+
+
+def test_box_partly_inside_a_hull_matches_the_volume_share():
+    # reference: the volume of a box below a plane across it, over the box's volume. A
+    # 2 x 4 x 1 m box, turned so that its 4 m edge lies along z, centred at z = 3, spans
+    # z = 1 .. 5; a hull reaching up to z = 3.5 holds (3.5 - 1) / 4 = 0.625 of it, within
+    # the sample's binomial error
+    box = make_debris("box", (Part(name="box", shape="box", size=(2.0, 4.0, 1.0),
+                                   mass=1.0),))
+    samples = interior_samples(box)
+    q = rotation_quaternion([math.pi / 2, 0.0, 0.0])  # body y -> world z
+    origin = np.array([1.0, 2.0, 3.0])
+    hull = np.array([[x, y, z] for x in (-10.0, 10.0) for y in (-10.0, 10.0)
+                     for z in (-10.0, 3.5)])
+    share = enclosed_fraction(hull, samples, origin, rotation_matrix(q))
+    assert share == pytest.approx(0.625, abs=three_sigma(0.625))
+    # half inside: the plane through the box's centre
+    hull[:, 2] = np.where(hull[:, 2] > 0, 3.0, -10.0)
+    share = enclosed_fraction(hull, samples, origin, rotation_matrix(q))
+    assert share == pytest.approx(0.5, abs=three_sigma(0.5))
+
+
+def test_mouth_opening_of_a_flat_net_is_one_and_of_a_cinched_one_zero():
+    # reference: the largest chord of a square is its diagonal, sqrt(2) L; a perimeter
+    # gathered to one point has none; the folded start (fold ratio 1/4) is a square of L / 4
+    ns, mesh = 21, 1.0
+    net = flat_net(ns, mesh)
+    assert mouth_opening(net, ns, (ns - 1) * mesh) == pytest.approx(1.0, rel=1e-12)
+    assert mouth_opening(0.25 * net, ns, (ns - 1) * mesh) == pytest.approx(0.25, rel=1e-12)
+    cinched = net.copy()
+    cinched[perimeter(ns)] = [0.5, -2.0, 3.0]
+    assert mouth_opening(cinched, ns, (ns - 1) * mesh) == 0.0
+
+
+def judge(frames, **rules) -> OutcomeMonitor:
+    """An outcome monitor fed synthetic frames (t [s], enclosed, mouth, contacts, moving
+    away); the run completed."""
+    monitor = OutcomeMonitor(OutcomeRules(enabled=True, **rules), geometry=None)
+    for t, enclosed, mouth, contacts, away in frames:
+        monitor.update(t, Score(enclosed, mouth, enclosed * (1 - mouth)), contacts, away)
+    monitor.finish(completed=True)
+    return monitor
+
+
+TIMES = np.round(np.arange(0.0, 40.01, 0.1), 10)
+"""Synthetic frames every 0.1 s over 40 s [s]."""
+
+
+def test_captured_once_enclosed_and_closed_for_the_hold_time():
+    # the hold restarts when the mouth opens (at 8 s) and completes 10 s after it closes
+    # again (9 s); the decision is final though the net later leaves
+    frames = [(t, 0.95 if t >= 2 else 0.0, 0.2 if (2 <= t < 8 or t >= 9) and t < 25 else 0.6,
+               5 if 1 <= t < 25 else 0, True) for t in TIMES]
+    monitor = judge(frames)
+    assert (monitor.outcome, monitor.time, monitor.since) == ("captured", 19.0, 9.0)
+    # the same frames less the last one of the hold: undecided (touched, never held 10 s)
+    assert judge([f for f in frames if f[0] < 19.0]).outcome == "undecided"
+
+
+def test_escaped_after_the_quiet_time_once_the_net_moves_away():
+    # last contact at 5 s; quiet from 10 s, but the net only moves away from 12 s on
+    frames = [(t, 0.5, 0.8, 3 if 1 <= t <= 5 else 0, t >= 12) for t in TIMES]
+    monitor = judge(frames)
+    assert (monitor.outcome, monitor.time, monitor.since) == ("escaped", 12.0, 5.0)
+    moving_away = [(t, e, m, c, True) for t, e, m, c, _ in frames]
+    assert judge(moving_away).time == 10.0
+
+
+def test_missed_without_contact_by_the_miss_time_or_the_end():
+    frames = [(t, 0.0, 0.9, 0, True) for t in TIMES]
+    monitor = judge(frames, miss_time=3.0)
+    assert (monitor.outcome, monitor.time) == ("missed", 3.0)
+    assert (judge(frames).outcome, judge(frames).time) == ("missed", 40.0)
+    interrupted = OutcomeMonitor(OutcomeRules(), geometry=None)
+    interrupted.update(1.0, Score(0.0, 0.9, 0.0), 0, True)
+    interrupted.finish(completed=False)  # cut short: not a miss
+    assert (interrupted.outcome, interrupted.time) == ("undecided", -1.0)
+
+
+def test_undecided_while_touching_an_open_net():
+    frames = [(t, 0.98, 0.4, 10 if t >= 9 else 0, True) for t in TIMES]
+    monitor = judge(frames)
+    assert (monitor.outcome, monitor.time, monitor.since) == ("undecided", -1.0, -1.0)
+
+
+RELAXED = {"outcome.enclosed_fraction": 0.01, "outcome.mouth_opening": 0.3,
+           "outcome.hold_time": 0.1}
+"""Rules the small capture (tests/conftest.py) meets at 0.5 s: 1 % of the debris in the
+net's hull, the mouth within 0.3 of its diagonal, for 0.1 s."""
+
+
+@pytest.mark.parametrize(("overrides", "outcome", "stop_s"), [
+    (RELAXED, "captured", 0.5),
+    # the debris crossing at 4 m/s grazes the net (two nodes at 0.3 s) and is gone
+    ({"debris.velocity": [4.0, 0.0, -2.0], "outcome.quiet_time": 0.5}, "escaped", 0.8),
+    ({"debris.position": [40.0, 0.0, 3.0], "debris.velocity": [0.0, 0.0, 0.0],
+      "outcome.miss_time": 0.3}, "missed", 0.3),
+])
+def test_a_run_stops_once_decided_and_its_recording_judges_the_same(tmp_path, capsys,
+                                                                    overrides, outcome, stop_s):
+    # reference: the recording alone (bulletnet.metrics.capture_outcome, the same monitor on
+    # the recorded frames), and the same run carried to its end
+    from bulletnet.cli import main
+
+    scene = small_capture(**{"outcome.stop_when_decided": True, **overrides})
+    result = bn.run(scene, tmp_path / "stop.h5")
+    assert (result.status, result.outcome) == ("completed", outcome)
+    assert result.outcome_time_s == pytest.approx(stop_s, abs=1e-9)
+    rec = bn.open_recording(tmp_path / "stop.h5")
+    assert rec.time[-1] == result.outcome_time_s and rec.time.size < 21
+    assert (rec.attrs["outcome"], rec.attrs["outcome_time_s"]) == (outcome, rec.time[-1])
+    with h5py.File(tmp_path / "stop.h5") as f:
+        assert f["debris/interior_samples"].shape == (SAMPLE_COUNT, 3)
+        assert f["debris/interior_samples"].attrs["units"] == "m"
+    _, judged = bn.metrics.capture_outcome(rec)
+    assert (judged.outcome, judged.time) == (outcome, result.outcome_time_s)
+    full = bn.run(small_capture(**overrides), tmp_path / "full.h5")
+    assert (full.status, full.frames, full.outcome) == ("completed", 21, outcome)
+    assert full.outcome_time_s == result.outcome_time_s
+    assert main(["metrics", str(tmp_path / "stop.h5")]) == 0
+    assert f"outcome: {outcome}, decided at {stop_s:.2f} s" in capsys.readouterr().out
+
+
+def test_a_recording_without_its_sample_is_scored_from_its_scene(tmp_path):
+    # reference: the same recording with the sample the run stored
+    bn.run(small_capture(**{"scene.duration": 0.6}), tmp_path / "a.h5")
+    with h5py.File(tmp_path / "a.h5", "a") as f:
+        f.copy("debris/interior_samples", "kept")
+        del f["debris/interior_samples"]
+    rec = bn.open_recording(tmp_path / "a.h5")
+    assert "interior_samples" not in rec.debris
+    with h5py.File(tmp_path / "a.h5") as f:
+        kept = f["kept"][()]
+    np.testing.assert_array_equal(bn.metrics.score_geometry(rec).samples, kept)
