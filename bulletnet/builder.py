@@ -151,11 +151,6 @@ def _tether(s: Scenario, ns: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return pairs, rest, kind
 
 
-MIN_REST_RATIO = 0.05
-"""A winch stops when its cable's rest length is down to this share of its initial one [-]
-(its drum is full)."""
-
-
 def closing_routes(route: str, ns: int) -> list[np.ndarray]:
     """Node polylines of the closing cables [-], each (V_c,): ``sides``, corner mass k ->
     the perimeter nodes of one side -> the next corner mass, for the four sides in order

@@ -194,7 +194,7 @@ class DebrisScene:
 
 
 CLOSING_ROUTES = ("sides", "perimeter")
-CLOSING_TRIGGERS = ("time", "contact")
+CLOSING_TRIGGERS = ("time", "contact", "wrap")
 TETHER_ATTACHMENTS = ("center", "bridle")
 
 
@@ -221,16 +221,24 @@ class Closing:
     frequency (``damping.axial_reference_frequency``): the threads' law (Eq. 3)."""
     reel_speed: float = _f(0.5, "m/s", ">=0")
     """Speed at which each winch reels its cable in [m/s]."""
+    min_length_ratio: float = _f(0.15, "-", "(0,1]")
+    """A winch stops when its cable's rest length is down to this share of its initial one
+    [-] (the mouth is cinched; its drum is full)."""
     stall_tension: float = _f(5.0, "N", ">0")
     """Cable tension at which a winch stops reeling and holds [N] (it reels on below it)."""
     trigger: str = _f("contact", "-", "choice", CLOSING_TRIGGERS)
-    """When the winches start: at ``trigger_time`` (``time``) or ``trigger_delay`` after the
-    net first touches the debris (``contact``)."""
+    """When the winches start: at ``trigger_time`` (``time``), ``trigger_delay`` after the
+    net first touches the debris (``contact``), or at the first recorded frame at which the
+    net's wrap (the share of directions from the debris' centre of mass that meet the net)
+    reaches ``trigger_wrap`` (``wrap``)."""
     trigger_time: float = _f(0.0, "s", ">=0")
     """Start time of the winches with trigger ``time`` [s]."""
     trigger_delay: float = _f(2.0, "s", ">=0")
     """Delay from the first debris contact to the start of the winches with trigger
     ``contact`` [s]."""
+    trigger_wrap: float = _f(0.5, "-", "(0,1]")
+    """Wrap at which the winches start with trigger ``wrap`` [-] (a flat net 10 m from the
+    debris covers 0.17, a net wrapped all round 1)."""
 
 
 @dataclass(frozen=True)
@@ -447,6 +455,10 @@ def _check_consistency(s: Scenario) -> None:
         if getattr(s, section).enabled and s.scene.kind != "net":
             raise ScenarioError(f"{s.source}: {section}.enabled: a {s.scene.kind} scene has no "
                                 "net to close or tether")
+    if (s.closing.enabled and s.closing.trigger in ("contact", "wrap")
+            and not (s.debris.asset and s.contact.enabled)):
+        raise ScenarioError(f"{s.source}: closing.trigger: {s.closing.trigger!r} needs debris "
+                            "(debris.asset) and contact (contact.enabled); use 'time'")
     if s.closing.enabled and s.simulation.engine == "reference":
         raise ScenarioError(f"{s.source}: closing.enabled: the reference engine has no "
                             "winches; use --engine fast or bullet")

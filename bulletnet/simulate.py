@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .builder import build_model, initial_state
-from .capture_score import OutcomeMonitor, ScoreGeometry, interior_samples
+from .capture_score import OutcomeMonitor, ScoreGeometry, interior_samples, wrap_fraction
 from .debris import body_origin
 from .engines import make_engine
 from .errors import DivergenceError, ScenarioError
@@ -167,10 +167,16 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         }, oriented=state.oriented, debris=engine.debris, interior_samples=samples,
             contact=scenario.contact.enabled)
 
+    wrap_trigger = scenario.closing.enabled and scenario.closing.trigger == "wrap"
+
     def take_frame() -> bool:
-        """Record the frame just reached and show it to the monitor; True: the run stops here
-        (its outcome is decided and the scene asks to stop then)."""
+        """Start the winches if the wrap trigger is reached, record the frame just reached and
+        show it to the monitor; True: the run stops here (its outcome is decided and the scene
+        asks to stop then)."""
         contacts = engine.contact_loads()
+        if wrap_trigger and wrap_fraction(state.position, model.nodes_per_side,
+                                          state.debris[:3]) >= scenario.closing.trigger_wrap:
+            engine.start_winches(state.time)
         if recorder is not None:
             recorder.append(state, *engine.thread_loads(state), contacts,
                             engine.cable_loads())

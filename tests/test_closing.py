@@ -226,3 +226,29 @@ def test_closing_energy_rises_by_the_winch_work_and_no_more():
     assert work[-1] > 1e-3  # the winches did work
     assert np.all(gain <= work + 1e-12 * abs(energy(rec)[0]))
     assert rec.cables["rest_length"][-1].max() < rec.cables["rest_length"][0].min()
+
+
+@pytest.mark.parametrize("trigger", ["contact", "wrap"])
+def test_winches_start_at_their_trigger(tmp_path, trigger):
+    # Reference: the trigger rules. The winches reel (the rest length falls) from
+    # first contact + delay (to the step) or from the first recorded frame whose wrap
+    # (metrics.wrap, recomputed from the recording) reaches the threshold, and not before.
+    from bulletnet import run
+    from bulletnet.metrics import first_contact_time, wrap
+    from bulletnet.recording import open_recording
+    from tests.conftest import small_capture
+
+    scene = small_capture(**{"closing.enabled": True, "closing.trigger": trigger,
+                             "closing.trigger_delay": 0.12, "closing.trigger_wrap": 0.02,
+                             "closing.reel_speed": 1.0})
+    rec = open_recording(run(scene, tmp_path / "trigger.h5").path)
+    rest = rec.cables["rest_length"][:, 0]
+    reeling = np.nonzero(rest < rest[0])[0]
+    assert reeling.size, "the winches never started"
+    if trigger == "contact":
+        start = first_contact_time(rec) + 0.12
+    else:
+        start = rec.time[np.nonzero(wrap(rec) >= 0.02)[0][0]]
+    # the first frame showing a shorter cable is the first frame after the start
+    assert rec.time[reeling[0] - 1] <= start < rec.time[reeling[0]]
+    assert rest[-1] == pytest.approx(rest[0] - 1.0 * (rec.time[-1] - start), abs=2e-3)

@@ -8,7 +8,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from .. import contact, integrators
-from ..builder import MIN_REST_RATIO, scene_debris
+from ..builder import scene_debris
 from ..forces.cable import CableArrays, cable_arrays
 from ..model import NetModel
 from ..scenario import Scenario
@@ -47,14 +47,14 @@ def bending_interval(model: NetModel, dt: float, margin: float) -> int:
 
 def winch_cables(scenario: Scenario, model: NetModel) -> CableArrays:
     """The model's closing cables with the scene's winches (reel speed, stall tension; they
-    stop at :data:`~bulletnet.builder.MIN_REST_RATIO` of the initial rest length), armed at
+    stop at ``closing.min_length_ratio`` of the initial rest length), armed at
     ``closing.trigger_time`` with trigger ``time`` (with ``contact``, see
     :meth:`Engine.arm_winches`)."""
     cl, count = scenario.closing, model.cable_count
     cables = cable_arrays(model.cable_nodes, model.cable_start, model.cable_rest_length,
                           model.cable_rigidity, model.cable_damping_time,
                           np.full(count, cl.reel_speed), np.full(count, cl.stall_tension),
-                          MIN_REST_RATIO * model.cable_rest_length)
+                          cl.min_length_ratio * model.cable_rest_length)
     if cl.trigger == "time":
         cables.start_time[0] = cl.trigger_time
     return cables
@@ -103,8 +103,13 @@ class Engine(ABC):
         first debris contact once there has been one (engines call this between steps)."""
         cl = self.scenario.closing
         first = self.contact.arrays.first_contact[0]
-        if cl.trigger == "contact" and first >= 0.0 and self.cables.start_time[0] == np.inf:
-            self.cables.start_time[0] = first + cl.trigger_delay
+        if cl.trigger == "contact" and first >= 0.0:
+            self.start_winches(first + cl.trigger_delay)
+
+    def start_winches(self, t: float) -> None:
+        """Start the winches at time ``t`` [s], unless they have been started already."""
+        if self.cables.start_time[0] == np.inf:
+            self.cables.start_time[0] = t
 
     def cable_loads(self) -> dict:
         """The closing cables at the last force evaluation, each shape (C,): ``tension`` [N],
