@@ -252,3 +252,19 @@ def test_winches_start_at_their_trigger(tmp_path, trigger):
     # the first frame showing a shorter cable is the first frame after the start
     assert rec.time[reeling[0] - 1] <= start < rec.time[reeling[0]]
     assert rest[-1] == pytest.approx(rest[0] - 1.0 * (rec.time[-1] - start), abs=2e-3)
+
+
+@pytest.mark.slow
+def test_paper_capture_with_closing_is_captured(tmp_path):
+    # Reference: the capture score's outcome rules (docs/capture.md) on the paper's capture
+    # with the closing mechanism (scenarios/capture_closing.toml, no bending). Without it the
+    # same net escapes (docs/capture.md); with the winches started at first contact the
+    # perimeter gathers round the CSM and holds it: captured (at 39.3 s on this version,
+    # held to 120 s: benchmarks/closing.py). The run stops once decided.
+    from bulletnet import run
+
+    scene = scenario.load("capture_closing", {"outcome.stop_when_decided": True})
+    result = run(scene)
+    assert result.status == "completed"
+    assert result.outcome == "captured"
+    assert result.state.time < 60.0  # stopped when decided, not at 120 s

@@ -64,7 +64,7 @@ class Track:
     position: np.ndarray
     """Node positions [m], shape (T, N, 3)."""
     tension: np.ndarray
-    """Thread tensions, 0 when slack [N], shape (T, P)."""
+    """Thread (and cable span) tensions, 0 when slack [N], shape (T, P)."""
     shear: np.ndarray | None
     """Thread shear force magnitudes [N], shape (T, P); None without bending."""
     radius: np.ndarray
@@ -72,7 +72,7 @@ class Track:
     kind: np.ndarray
     """Node kinds (:class:`bulletnet.model.NodeKind`) [-], shape (N,)."""
     pairs: np.ndarray
-    """Thread end nodes [-], shape (P, 2)."""
+    """End nodes of the threads, then of the closing cables' spans [-], shape (P, 2)."""
     mouth: np.ndarray
     """Mouth polygon, x-y of the perimeter nodes [m], shape (T, 4 Ns - 4, 2)."""
     area: np.ndarray
@@ -199,6 +199,24 @@ def read_capture(rec: Recording, frames: np.ndarray) -> tuple[DebrisTrack | None
     return debris, contacts
 
 
+def cable_spans(rec: Recording, pairs: np.ndarray, tension: np.ndarray,
+                shear: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The threads with the closing cables' spans appended as more segments (each span
+    drawn with its cable's tension [N], no shear): pairs (P + S, 2), tension and shear
+    (T, P + S); the threads alone without cables."""
+    if rec.cables is None:
+        return pairs, tension, shear
+    nodes, start = rec.cables["nodes"], rec.cables["start"]
+    cable = np.concatenate([np.full(b - a - 1, c) for c, (a, b) in
+                            enumerate(zip(start[:-1], start[1:], strict=True))])
+    first = np.concatenate([np.arange(a, b - 1) for a, b in zip(start[:-1], start[1:],
+                                                                 strict=True)])
+    spans = np.stack([nodes[first], nodes[first + 1]], axis=1)
+    return (np.concatenate([pairs, spans]),
+            np.concatenate([tension, rec.cables["tension"][:, cable]], axis=1),
+            np.concatenate([shear, np.zeros((shear.shape[0], spans.shape[0]))], axis=1))
+
+
 def make_track(rec: Recording, colour: tuple[int, int, int], every: int) -> Track:
     """``rec`` decimated to every ``every``-th frame (its last frame always kept)."""
     frames = np.unique(np.append(np.arange(0, rec.time.size, every), rec.time.size - 1))
@@ -210,11 +228,12 @@ def make_track(rec: Recording, colour: tuple[int, int, int], every: int) -> Trac
         score = scores[frames]
         outcome = (f"{judged.outcome} at {judged.time:.1f} s" if judged.decided
                    else judged.outcome)
+    pairs, tension, shear = cable_spans(rec, rec.pairs, rec.tension, rec.shear)
     return Track(
         label=f"{rec.path.stem} ({'with' if bending else 'no'} bending)",
         colour=colour, time=rec.time[frames], position=rec.position[frames],
-        tension=rec.tension[frames], shear=rec.shear[frames] if bending else None,
-        radius=rec.radius, kind=rec.kind, pairs=rec.pairs,
+        tension=tension[frames], shear=shear[frames] if bending else None,
+        radius=rec.radius, kind=rec.kind, pairs=pairs,
         mouth=metrics.mouth(rec)[frames], area=metrics.mouth_area(rec)[frames],
         height=metrics.net_height(rec)[frames], debris=debris, contacts=contacts,
         score=score, outcome=outcome)
