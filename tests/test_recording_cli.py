@@ -54,6 +54,20 @@ def test_scenario_toml_round_trip():
     assert loads(to_toml(s)) == s
 
 
+def test_scene_from_a_base_scene(tmp_path):
+    # a scene that starts from another equals that scene with its own keys set over it
+    child = tmp_path / "child.toml"
+    child.write_text('base = "capture"\n[net]\nnodes_per_side = 7\n[scene]\nname = "c"\n')
+    assert bn.load_scenario(str(child)) == bn.load_scenario(
+        "capture", {"net.nodes_per_side": 7, "scene.name": "c"})
+    assert bn.load_scenario("capture_closing").debris == bn.load_scenario("capture").debris
+    loop = tmp_path / "loop.toml"
+    loop.write_text('base = "loop.toml"\n')
+    proc = cli("params", str(loop))
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1
+    assert "includes itself" in proc.stderr
+
+
 def test_interrupted_run_keeps_frames(tmp_path):
     calls = []
 
