@@ -201,11 +201,10 @@ def _add_sweep(sub) -> None:
 def cmd_sweep(args) -> int:
     from pathlib import Path
 
-    from .errors import ScenarioError
-    from .sweep import load_sweep, plot_sweep, run_sweep, write_table
+    from .scenario import load
+    from .sweep import load_sweep, plot_sweep, run_sweep, summary_measures, write_table
 
-    if args.workers < 1:
-        raise ScenarioError(f"--workers {args.workers}: expected an integer >= 1")
+    _check_workers(args.workers)
     spec = load_sweep(args.sweep)
     out = Path(args.out)
     print(f"bulletnet: {len(spec.variants)} variants of {spec.scene} -> {out}", file=sys.stderr)
@@ -213,13 +212,19 @@ def cmd_sweep(args) -> int:
     rows = run_sweep(spec, out, args.scheduler, args.workers, args.serial,
                      log=lambda text: print(text, file=sys.stderr))
     wall = time.perf_counter() - start
-    paths = write_table(rows, out) + plot_sweep(rows, spec.swept, out)
+    measures = (*summary_measures(load(spec.scene)), "wall_s")
+    paths = write_table(rows, out) + plot_sweep(rows, spec.swept, out, measures)
     counts = {s: sum(r["status"] == s for r in rows) for s in dict.fromkeys(
         r["status"] for r in rows)}
     print(f"{len(rows)} variants in {wall:.1f} s wall: "
           + ", ".join(f"{n} {s}" for s, n in counts.items()))
     print("\n".join(str(p) for p in paths))
     return 0
+
+
+def _check_workers(workers: int) -> None:
+    if workers < 1:
+        raise ScenarioError(f"--workers {workers}: expected an integer >= 1")
 
 
 def cmd_bench(args) -> int:
