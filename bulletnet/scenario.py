@@ -399,6 +399,23 @@ def split_component(key: str) -> tuple[str, int | None]:
     return (match[1], int(match[2])) if match else (key, None)
 
 
+def unit_of(key: str) -> str:
+    """The SI unit of a dotted scene key (``"-"`` for a dimensionless one); ``name[i]``
+    has its vector's unit. An unknown key is a :class:`ScenarioError`."""
+    cls: Any = Scenario
+    f = None
+    for part in split_component(key)[0].split("."):
+        fields = {x.name: x for x in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) \
+            else {}
+        if part not in fields or part == "source":
+            raise ScenarioError(f"unknown scene key '{key}'")
+        f = fields[part]
+        cls = f.type if not isinstance(f.type, str) else globals().get(f.type)
+    if dataclasses.is_dataclass(cls):
+        raise ScenarioError(f"'{key}' is a table, not a scene key")
+    return f.metadata.get("unit", "-")
+
+
 def _set_dotted(doc: dict, key: str, value: Any, source: str) -> None:
     """Set ``key`` (dotted; ``name[i]`` sets component i of a vector) in the nested ``doc``."""
     key_name, component = split_component(key)
