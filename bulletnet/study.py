@@ -297,14 +297,19 @@ def unit_design(design: str, runs: int, seed: int, dims: int) -> np.ndarray:
     (R = runs (dims + 2)) for ``sobol``."""
     if design == "random":
         return np.random.default_rng(seed).random((runs, dims))
-    try:
-        from SALib.sample import sobol
-    except ImportError:
-        raise ScenarioError("Sobol' designs need SALib: pip install 'bulletnet[study]'") \
-            from None
+    sobol = salib("sample")
     problem = {"num_vars": dims, "names": [f"x{j}" for j in range(dims)],
                "bounds": [[0.0, 1.0]] * dims}
     return sobol.sample(problem, runs, calc_second_order=False, seed=seed)
+
+
+def salib(part: str):
+    """SALib's Sobol' module of ``part`` (``sample`` or ``analyze``), imported lazily."""
+    try:
+        return importlib.import_module(f"SALib.{part}.sobol")
+    except ImportError:
+        raise ScenarioError("Sobol' designs need SALib: pip install 'bulletnet[study]'") \
+            from None
 
 
 def draw(design: str, runs: int, seed: int, vary: dict[str, Distribution]) -> list[dict]:
@@ -569,3 +574,43 @@ def ishigami(inputs: dict) -> dict:
     x1, x2, x3 = inputs["x1"], inputs["x2"], inputs["x3"]
     a, b = inputs.get("a", 7.0), inputs.get("b", 0.1)
     return {"y": math.sin(x1) + a * math.sin(x2) ** 2 + b * x3 ** 4 * math.sin(x1)}
+
+
+MOUTH_AREA_TIME_S = 1.5
+"""When :func:`bending_effect` compares the mouth areas [s] (Sec. 4.2: 2.5 times larger with
+bending at 1.5 s)."""
+
+
+def bending_effect(scenario) -> dict:
+    """How much bending changes a deployment (Sec. 4.2, Table 4), at one design point: the
+    scene run without and with bending, all else equal (temporary recordings), measured
+    against each other. Returns Eq. 14's position RMSE between the two runs, maximum and
+    average over the nodes (``rmse_pos_max_m``, ``rmse_pos_avg_m`` [m]) and the average
+    velocity RMSE (``rmse_vel_avg_m_s`` [m/s]); each run's time to 90 % deployed
+    (``deployed_90pct_plain_s``, ``deployed_90pct_bending_s`` [s], None if not within the
+    run); the mouth area at :data:`MOUTH_AREA_TIME_S` with over without bending
+    (``mouth_area_ratio_1_5s`` [-]) and the side length L = (Ns - 1) l_mesh (``side_m``)."""
+    import tempfile
+
+    from .metrics import deployed_time, mouth_area, rmse
+    from .recording import open_recording
+    from .simulate import run
+
+    if scenario.scene.duration < MOUTH_AREA_TIME_S:
+        raise ScenarioError(f"bending_effect: scene.duration {scenario.scene.duration} s is "
+                            f"shorter than the {MOUTH_AREA_TIME_S} s of the mouth-area ratio")
+    recs = {}
+    with tempfile.TemporaryDirectory(prefix="bulletnet-") as scratch:
+        for name, bending in (("plain", False), ("bending", True)):
+            path = Path(scratch) / f"{name}.h5"
+            run(scenario.with_overrides({"bending.enabled": bending}), path)
+            recs[name] = open_recording(path)
+    r = rmse(recs["plain"], recs["bending"])
+    area = {name: float(np.interp(MOUTH_AREA_TIME_S, rec.time, mouth_area(rec)))
+            for name, rec in recs.items()}
+    return {"rmse_pos_max_m": r["rmse_pos_max"], "rmse_pos_avg_m": r["rmse_pos_avg"],
+            "rmse_vel_avg_m_s": r["rmse_vel_avg"],
+            "deployed_90pct_plain_s": deployed_time(recs["plain"], 0.9),
+            "deployed_90pct_bending_s": deployed_time(recs["bending"], 0.9),
+            "mouth_area_ratio_1_5s": area["bending"] / area["plain"],
+            "side_m": (scenario.net.nodes_per_side - 1) * scenario.net.mesh_length}

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ScenarioError
-from .study import latest, read_table
+from .study import latest, read_table, salib
 from .sweep import plot_sweep
 
 
@@ -127,8 +127,7 @@ def sobol_indices(doc: dict, rows: list[dict], conf: float = 0.95,
     the measures left out (a run without a value, a constant measure, runs missing)."""
     if doc["design"] != "sobol":
         return {}, {}
-    from SALib.analyze import sobol
-
+    sobol = salib("analyze")
     columns = list(doc["columns"].values())
     problem = {"num_vars": len(columns), "names": columns, "bounds": [[0.0, 1.0]] * len(columns)}
     indices, skipped = {}, {}
