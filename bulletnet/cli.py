@@ -184,17 +184,23 @@ def cmd_stability(args) -> int:
     return 0
 
 
+def _add_dask(parser: argparse.ArgumentParser, what: str) -> None:
+    """Where a sweep's or a study's runs go: --scheduler, --workers, --serial."""
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: a local "
+                             "cluster)")
+    parser.add_argument("--workers", type=int, default=2, metavar="N",
+                        help="worker processes of the local cluster")
+    parser.add_argument("--serial", action="store_true",
+                        help=f"no Dask: run {what} one after another in this process")
+
+
 def _add_sweep(sub) -> None:
     sweep = sub.add_parser("sweep", help="run variants of a scene over Dask and gather a table "
                            "of summary measures (CSV, Parquet with pyarrow) and plots")
     sweep.add_argument("sweep", metavar="SWEEP.toml", help="sweep file (see "
                        "scenarios/sweep_example.toml)")
-    sweep.add_argument("--scheduler", metavar="ADDRESS",
-                       help="Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: a local cluster)")
-    sweep.add_argument("--workers", type=int, default=2, metavar="N",
-                       help="worker processes of the local cluster")
-    sweep.add_argument("--serial", action="store_true",
-                       help="no Dask: run the variants one after another in this process")
+    _add_dask(sweep, "the variants")
     sweep.add_argument("--out", default="sweep", metavar="DIR",
                        help="folder for sweep.csv, runs/ and figures/")
 
@@ -233,12 +239,7 @@ def _add_study(sub) -> None:
                        "summary.json, figures/ (and runs/ with --record)")
     study.add_argument("--report", metavar="DIR", help="run nothing: write DIR/summary.json "
                        "and DIR/figures/ from the table of a study (done, running or stopped)")
-    study.add_argument("--scheduler", metavar="ADDRESS",
-                       help="Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: a local cluster)")
-    study.add_argument("--workers", type=int, default=2, metavar="N",
-                       help="worker processes of the local cluster")
-    study.add_argument("--serial", action="store_true",
-                       help="no Dask: run one after another in this process")
+    _add_dask(study, "the runs")
     study.add_argument("--record", action="store_true", help="keep each run's recording as "
                        "DIR/runs/run_NNNNN.h5 (default: summaries only)")
     study.add_argument("--retry-failed", action="store_true", help="also rerun the runs whose "

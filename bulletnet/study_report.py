@@ -213,12 +213,7 @@ def plot_sobol(indices: dict, conf: float, out: Path) -> Path:
         ax.grid(True, axis="y", alpha=0.3)
     axes[0][0].set_ylabel(f"Sobol' index [-] ({100 * conf:g} % interval)")
     axes[0][0].legend(fontsize=8)
-    fig.tight_layout()
-    path = out / "figures" / "sobol.png"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, out / "figures" / "sobol.png")
 
 
 def plot_probabilities(probs: dict, out: Path) -> Path:
@@ -251,8 +246,11 @@ def plot_probabilities(probs: dict, out: Path) -> Path:
             ax.set_title(column, fontsize=9)
             ax.grid(True, alpha=0.3)
         row[-1].legend(fontsize=7)
+    return _save(plt, fig, out / "figures" / "probabilities.png")
+
+
+def _save(plt, fig, path: Path) -> Path:
     fig.tight_layout()
-    path = out / "figures" / "probabilities.png"
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=100)
     plt.close(fig)
