@@ -44,7 +44,8 @@ def wilson(successes: int, n: int, conf: float = 0.95) -> tuple[float, float, fl
     p = successes / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
-    return p, max(0.0, centre - half), min(1.0, centre + half)
+    # the interval holds p_hat; say so exactly where round-off would put a bound past it
+    return p, min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half))
 
 
 def _numeric(value) -> bool:

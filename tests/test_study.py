@@ -228,6 +228,9 @@ def test_wilson_interval_matches_closed_form_values():
         z = 1.959963984540054
         for bound in (lo, hi):
             assert (p - bound) ** 2 == pytest.approx(z * z * bound * (1 - bound) / n, abs=1e-15)
+    # the interval always holds p_hat, also where round-off meets 0 or 1 (20 of 20, say)
+    assert all(wilson(k, n)[1] <= k / n <= wilson(k, n)[2]
+               for n in range(1, 200) for k in range(n + 1))
 
 
 def test_report_probabilities_and_figures(tmp_path):
