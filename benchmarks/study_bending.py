@@ -6,7 +6,8 @@ Throughput, in the same run: the first SUBSET design points one after another in
 process, then the same points on a fresh local Dask cluster of WORKERS processes (both warm
 their kernels first; runs per hour with and without the cluster's start). Then the whole
 study on that cluster into WORK/study, which is resumed if an earlier run of this script
-stopped half-way. Writes OUT/study_bending.json (the report's summary.json, the throughput
+stopped half-way (its runs per hour then count this session's runs only). Writes
+OUT/study_bending.json (the report's summary.json, the throughput
 and the load average) and OUT/study_bending_runs.csv (the table); the figures are in
 WORK/study/figures/.
 
@@ -74,6 +75,10 @@ def main() -> None:
         whole = {"ran": done["ran"], "skipped": done["skipped"],
                  "wall_s": time.perf_counter() - begin}
         whole["runs_per_hour"] = 3600 * done["ran"] / whole["wall_s"] if done["ran"] else None
+    # the table's own record, whatever session ran each row: busy time per design point
+    walls = [r["wall_s"] for r in read_table(work / "study" / "runs.csv")[1]]
+    whole |= {"rows": len(walls), "sum_of_run_walls_s": sum(walls),
+              "mean_run_wall_s": sum(walls) / len(walls)}
     load["after_study"] = os.getloadavg()
     report(work / "study")
     summary = json.loads((work / "study" / "summary.json").read_text())
