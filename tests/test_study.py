@@ -313,3 +313,44 @@ def test_example_studies_are_valid():
         study = load_study(bn.scenario.SCENARIO_DIR / f"{name}.toml")
         assert len(study.values) >= 64, name
         assert name not in bn.scenario.scene_names()
+
+
+def test_capture_study_measures_contact_and_reads_an_outcome(tmp_path):
+    # Reference: bulletnet.metrics on each run's own recording (kept with record=True). The
+    # scene is conftest.small_capture's, whose net touches the debris within its 1 s; the
+    # study varies the debris' lateral offset (a vector component), and reads the
+    # recording's root attribute 'outcome' where it has one.
+    import h5py
+
+    from bulletnet.sweep import CAPTURE_MEASURES
+
+    text = """
+scene = "capture"
+design = "random"
+runs = 2
+seed = 1
+[set]
+"net.nodes_per_side" = 6
+"net.mesh_length" = 1.0
+"debris.position" = [0.0, 0.0, 3.0]
+"debris.velocity" = [0.0, 0.0, -2.0]
+"scene.duration" = 1.0
+"simulation.record_rate" = 20.0
+[vary]
+"debris.position[0]" = {dist = "normal", mean = 0.0, std = 0.2}
+"""
+    study = load_study(write(tmp_path, text))
+    run_study(study, tmp_path / "out", serial=True, record=True)
+    rows = inputs_and_measures(tmp_path / "out")
+    assert list(rows[0])[1] == "debris.position[0]_m"
+    for k, row in enumerate(rows):
+        assert row["status"] == "completed", row["message"]
+        rec = bn.open_recording(tmp_path / "out" / "runs" / f"run_{k:05d}.h5")
+        assert row["first_contact_s"] == bn.metrics.first_contact_time(rec) < 1.0
+        assert row["max_nodes_in_contact"] == rec.contacts["count"].max() > 0
+        assert row["max_wrap"] == bn.metrics.wrap(rec).max() > 0
+        assert row["leave_s"] is None and row["outcome"] is None
+    path = tmp_path / "out" / "runs" / "run_00000.h5"
+    with h5py.File(path, "a") as f:
+        f.attrs["outcome"] = "captured"
+    assert CAPTURE_MEASURES["outcome"](bn.open_recording(path)) == "captured"
