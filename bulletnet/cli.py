@@ -1,5 +1,5 @@
 """The ``bulletnet`` command line: run, params, compare, metrics, plot, view, bench,
-stability, sweep.
+stability, sweep, study.
 
 Errors are one line on stderr: exit code 2 for bad input, 3 for a diverged run, 130 for an
 interrupted one."""
@@ -121,6 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_bench(sub)
     _add_stability(sub)
     _add_sweep(sub)
+    _add_study(sub)
     return parser
 
 
@@ -183,17 +184,23 @@ def cmd_stability(args) -> int:
     return 0
 
 
+def _add_dask(parser: argparse.ArgumentParser, what: str) -> None:
+    """Where a sweep's or a study's runs go: --scheduler, --workers, --serial."""
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: a local "
+                             "cluster)")
+    parser.add_argument("--workers", type=int, default=2, metavar="N",
+                        help="worker processes of the local cluster")
+    parser.add_argument("--serial", action="store_true",
+                        help=f"no Dask: run {what} one after another in this process")
+
+
 def _add_sweep(sub) -> None:
     sweep = sub.add_parser("sweep", help="run variants of a scene over Dask and gather a table "
                            "of summary measures (CSV, Parquet with pyarrow) and plots")
     sweep.add_argument("sweep", metavar="SWEEP.toml", help="sweep file (see "
                        "scenarios/sweep_example.toml)")
-    sweep.add_argument("--scheduler", metavar="ADDRESS",
-                       help="Dask scheduler, e.g. tcp://10.0.0.5:8786 (default: a local cluster)")
-    sweep.add_argument("--workers", type=int, default=2, metavar="N",
-                       help="worker processes of the local cluster")
-    sweep.add_argument("--serial", action="store_true",
-                       help="no Dask: run the variants one after another in this process")
+    _add_dask(sweep, "the variants")
     sweep.add_argument("--out", default="sweep", metavar="DIR",
                        help="folder for sweep.csv, runs/ and figures/")
 
@@ -201,11 +208,10 @@ def _add_sweep(sub) -> None:
 def cmd_sweep(args) -> int:
     from pathlib import Path
 
-    from .errors import ScenarioError
-    from .sweep import load_sweep, plot_sweep, run_sweep, write_table
+    from .scenario import load
+    from .sweep import load_sweep, plot_sweep, run_sweep, summary_measures, write_table
 
-    if args.workers < 1:
-        raise ScenarioError(f"--workers {args.workers}: expected an integer >= 1")
+    _check_workers(args.workers)
     spec = load_sweep(args.sweep)
     out = Path(args.out)
     print(f"bulletnet: {len(spec.variants)} variants of {spec.scene} -> {out}", file=sys.stderr)
@@ -213,13 +219,83 @@ def cmd_sweep(args) -> int:
     rows = run_sweep(spec, out, args.scheduler, args.workers, args.serial,
                      log=lambda text: print(text, file=sys.stderr))
     wall = time.perf_counter() - start
-    paths = write_table(rows, out) + plot_sweep(rows, spec.swept, out)
+    measures = (*summary_measures(load(spec.scene)), "wall_s")
+    paths = write_table(rows, out) + plot_sweep(rows, spec.swept, out, measures)
     counts = {s: sum(r["status"] == s for r in rows) for s in dict.fromkeys(
         r["status"] for r in rows)}
     print(f"{len(rows)} variants in {wall:.1f} s wall: "
           + ", ".join(f"{n} {s}" for s, n in counts.items()))
     print("\n".join(str(p) for p in paths))
     return 0
+
+
+def _add_study(sub) -> None:
+    study = sub.add_parser("study", help="Monte Carlo or Sobol' study of a scene on Dask: one "
+                           "row per run in DIR/runs.csv, resumable; probabilities and Sobol' "
+                           "indices in DIR/summary.json (see docs/studies.md)")
+    study.add_argument("study", nargs="?", metavar="STUDY.toml", help="study file (see "
+                       "scenarios/study_*.toml); rerun into the same --out to resume")
+    study.add_argument("--out", metavar="DIR", help="folder for runs.csv, study.json, "
+                       "summary.json, figures/ (and runs/ with --record)")
+    study.add_argument("--report", metavar="DIR", help="run nothing: write DIR/summary.json "
+                       "and DIR/figures/ from the table of a study (done, running or stopped)")
+    _add_dask(study, "the runs")
+    study.add_argument("--record", action="store_true", help="keep each run's recording as "
+                       "DIR/runs/run_NNNNN.h5 (default: summaries only)")
+    study.add_argument("--retry-failed", action="store_true", help="also rerun the runs whose "
+                       "worker died (status failed)")
+    study.add_argument("--confidence", type=float, default=0.95, metavar="LEVEL",
+                       help="confidence level of the report's intervals [-]")
+    study.add_argument("--bins", type=int, default=4, metavar="N",
+                       help="quantile bins of each input for the report's probabilities")
+
+
+def cmd_study(args) -> int:
+    from pathlib import Path
+
+    from .study import load_study, run_study
+    from .study_report import report
+
+    if (args.study is None) == (args.report is None):
+        raise ScenarioError("give a STUDY.toml to run, or --report DIR, not both")
+    if args.bins < 1:
+        raise ScenarioError(f"--bins {args.bins}: expected an integer >= 1")
+    if not 0 < args.confidence < 1:
+        raise ScenarioError(f"--confidence {args.confidence}: expected a number in (0, 1)")
+    if args.report is not None:
+        print("\n".join(str(p) for p in report(Path(args.report), args.confidence,
+                                                 args.bins)))
+        return 0
+    if args.out is None:
+        raise ScenarioError("--out DIR: the study's folder is required (rerun into it to "
+                            "resume)")
+    _check_workers(args.workers)
+    spec = load_study(args.study)
+    out = Path(args.out)
+    print(f"bulletnet: study {spec.path.name}: {spec.design} design, {len(spec.values)} runs "
+          f"of {spec.function or spec.scene} -> {out}", file=sys.stderr)
+    try:
+        done = run_study(spec, out, args.scheduler, args.workers, args.serial, args.record,
+                         args.retry_failed, log=lambda text: print(text, file=sys.stderr))
+    except KeyboardInterrupt:
+        print(f"\nbulletnet: study interrupted; {out / 'runs.csv'} keeps every finished run: "
+              "rerun the same command to resume", file=sys.stderr)
+        return 130
+    rate = done["ran"] / done["wall_s"] * 3600 if done["wall_s"] > 0 else math.inf
+    print(f"{done['ran']} runs in {done['wall_s']:.1f} s wall ({rate:.4g} runs/h); "
+          f"{done['skipped']} were already in the table")
+    try:
+        paths = done["paths"] + report(out, args.confidence, args.bins)
+    except BulletnetError as exc:  # e.g. no matplotlib: the table and summary.json stand
+        paths = done["paths"] + [out / "summary.json"]
+        print(f"bulletnet: no figures: {exc}", file=sys.stderr)
+    print("\n".join(str(p) for p in paths))
+    return 0
+
+
+def _check_workers(workers: int) -> None:
+    if workers < 1:
+        raise ScenarioError(f"--workers {workers}: expected an integer >= 1")
 
 
 def cmd_bench(args) -> int:
@@ -581,7 +657,7 @@ def main(argv: list[str] | None = None) -> int:
     handler = {"run": cmd_run, "params": cmd_params, "compare": cmd_compare,
                "metrics": cmd_metrics, "plot": cmd_plot, "view": cmd_view,
                "bench": cmd_bench, "stability": cmd_stability,
-               "sweep": cmd_sweep}[args.command]
+               "sweep": cmd_sweep, "study": cmd_study}[args.command]
     signal.signal(signal.SIGTERM, _terminate)
     try:
         return handler(args)

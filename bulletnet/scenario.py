@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -346,7 +347,8 @@ class Scenario:
     """Where the scene came from (file path or name), for error messages."""
 
     def with_overrides(self, overrides: dict[str, Any]) -> Scenario:
-        """Return a copy with dotted-key overrides (``{"net.nodes_per_side": 6}``) applied."""
+        """Return a copy with dotted-key overrides (``{"net.nodes_per_side": 6}``; a vector's
+        component by index from 0: ``{"debris.position[2]": 12.0}``) applied."""
         doc = to_dict(self)
         for key, value in overrides.items():
             _set_dotted(doc, key, value, self.source)
@@ -509,8 +511,33 @@ def _toml_value(v: Any) -> str:
     raise TypeError(f"cannot write {v!r} as TOML")
 
 
+def split_component(key: str) -> tuple[str, int | None]:
+    """``"debris.position[2]"`` -> ``("debris.position", 2)``; a plain key -> ``(key, None)``."""
+    match = re.fullmatch(r"(.+)\[(\d+)\]", key)
+    return (match[1], int(match[2])) if match else (key, None)
+
+
+def unit_of(key: str) -> str:
+    """The SI unit of a dotted scene key (``"-"`` for a dimensionless one); ``name[i]``
+    has its vector's unit. An unknown key is a :class:`ScenarioError`."""
+    cls: Any = Scenario
+    f = None
+    for part in split_component(key)[0].split("."):
+        fields = {x.name: x for x in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) \
+            else {}
+        if part not in fields or part == "source":
+            raise ScenarioError(f"unknown scene key '{key}'")
+        f = fields[part]
+        cls = f.type if not isinstance(f.type, str) else globals().get(f.type)
+    if dataclasses.is_dataclass(cls):
+        raise ScenarioError(f"'{key}' is a table, not a scene key")
+    return f.metadata.get("unit", "-")
+
+
 def _set_dotted(doc: dict, key: str, value: Any, source: str) -> None:
-    parts = key.split(".")
+    """Set ``key`` (dotted; ``name[i]`` sets component i of a vector) in the nested ``doc``."""
+    key_name, component = split_component(key)
+    parts = key_name.split(".")
     node = doc
     for i, part in enumerate(parts[:-1]):
         if not isinstance(node.get(part), dict):
@@ -519,7 +546,14 @@ def _set_dotted(doc: dict, key: str, value: Any, source: str) -> None:
         node = node[part]
     if parts[-1] not in node or isinstance(node[parts[-1]], dict):
         raise ScenarioError(f"{source}: override '{key}': unknown key")
-    node[parts[-1]] = value
+    if component is None:
+        node[parts[-1]] = value
+        return
+    vector = node[parts[-1]]
+    if not isinstance(vector, list) or component >= len(vector):
+        raise ScenarioError(f"{source}: override '{key}': '{key_name}' has no component "
+                            f"{component} (components index a vector from 0)")
+    node[parts[-1]] = [value if i == component else v for i, v in enumerate(vector)]
 
 
 def parse_override(text: str) -> tuple[str, Any]:
@@ -544,27 +578,31 @@ def resolve_path(name_or_path: str) -> Path:
             raise ScenarioError(f"{name_or_path}: no such scene file")
         return p
     named = SCENARIO_DIR / f"{name_or_path}.toml"
-    if named.is_file() and _is_sweep(named):
-        raise ScenarioError(f"{name_or_path}: a sweep file, not a scene; run it with "
-                            f"`bulletnet sweep {named}`")
+    plan = _plan_kind(named) if named.is_file() else ""
+    if plan:
+        raise ScenarioError(f"{name_or_path}: a {plan} file, not a scene; run it with "
+                            f"`bulletnet {plan} {named}`")
     if named.is_file():
         return named
     raise ScenarioError(f"{name_or_path}: no such scene (named scenes: "
                         f"{', '.join(scene_names()) or 'none'})")
 
 
-def _is_sweep(path: Path) -> bool:
-    """Whether a .toml is a sweep file (its ``scene`` names the base scene) rather than a
-    scene (whose ``scene`` is a table)."""
+def _plan_kind(path: Path) -> str:
+    """``"study"`` or ``"sweep"`` if a .toml is a study or a sweep file (its ``scene`` names
+    the base scene, where a scene's is a table; a study has a ``design``), else ``""``."""
     try:
-        return isinstance(tomllib.loads(path.read_text(encoding="utf-8")).get("scene"), str)
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-        return False
+        return ""
+    if "design" in doc:
+        return "study"
+    return "sweep" if isinstance(doc.get("scene"), str) else ""
 
 
 def scene_names() -> list[str]:
-    """Names of the shipped scenes: ``scenarios/*.toml`` without the sweep files."""
-    return sorted(q.stem for q in SCENARIO_DIR.glob("*.toml") if not _is_sweep(q))
+    """Names of the shipped scenes: ``scenarios/*.toml`` without the sweep and study files."""
+    return sorted(q.stem for q in SCENARIO_DIR.glob("*.toml") if not _plan_kind(q))
 
 
 def _parse(text: str, source: str) -> dict:

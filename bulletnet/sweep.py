@@ -19,6 +19,11 @@ its status and message, not a crash. The table (``OUT/sweep.csv``; ``sweep.parqu
 pyarrow is installed) holds the variant's parameters, :data:`SUMMARY_MEASURES` of its
 recording, wall time [s], steps and status; ``OUT/figures/`` each measure against each swept
 parameter.
+
+The parts a study (:mod:`bulletnet.study`) shares with a sweep live here: reading a plan file
+(:func:`read_plan`), building and validating its variants (:func:`build_variants`), running
+one scene into summary measures (:func:`run_scene`), and fanning calls out over Dask with a
+row for a lost worker (:func:`fan_out`).
 """
 
 from __future__ import annotations
@@ -26,9 +31,11 @@ from __future__ import annotations
 import contextlib
 import csv
 import itertools
+import os
+import tempfile
 import time
 import tomllib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,12 +64,68 @@ def max_corner_tension(rec: Recording) -> float:
     return float(rec.tension[:, -4:].max())
 
 
-SUMMARY_MEASURES: dict[str, Callable[[Recording], float | None]] = {
+def max_wrap(rec: Recording) -> float:
+    """Largest wrap of the debris by the net over the recorded frames [-]
+    (:func:`bulletnet.metrics.wrap`)."""
+    from .metrics import wrap
+
+    return float(wrap(rec).max())
+
+
+def max_nodes_in_contact(rec: Recording) -> int:
+    """Most nodes touching the debris in one frame interval [-]."""
+    from .metrics import nodes_in_contact
+
+    return int(nodes_in_contact(rec).max())
+
+
+def outcome(rec: Recording) -> str | None:
+    """The capture's outcome, where the recording keeps one (root attribute ``outcome``);
+    else None."""
+    value = rec.attrs.get("outcome")
+    return None if value is None else str(value)
+
+
+def _first_contact(rec: Recording) -> float | None:
+    from .metrics import first_contact_time
+
+    return first_contact_time(rec)
+
+
+def _leave(rec: Recording) -> float | None:
+    from .metrics import leave_time
+
+    return leave_time(rec)
+
+
+Measures = dict[str, Callable[[Recording], float | int | str | None]]
+"""Summary measures of a recording: column name (with its unit) -> function of the recording;
+None where a run never reaches it."""
+
+SUMMARY_MEASURES: Measures = {
     "final_mouth_area_m2": final_mouth_area,
     "deployed_90pct_s": deployed_90,
     "max_corner_tension_N": max_corner_tension,
 }
-"""Default summary measures of a variant's recording; keys carry the unit."""
+"""Summary measures of a deployment's recording; keys carry the unit."""
+
+CAPTURE_MEASURES: Measures = {
+    "first_contact_s": _first_contact,
+    "max_wrap": max_wrap,
+    "max_nodes_in_contact": max_nodes_in_contact,
+    "leave_s": _leave,
+    "outcome": outcome,
+}
+"""Summary measures of a capture's recording (a scene with debris and contact): first
+contact [s], largest wrap [-], most nodes in contact [-], leave time [s] (None: still on the
+debris at the end) and the outcome (None until the recording keeps one)."""
+
+
+def summary_measures(scenario) -> Measures:
+    """The measures that fit a scene: :data:`CAPTURE_MEASURES` with debris and contact, else
+    :data:`SUMMARY_MEASURES`."""
+    return CAPTURE_MEASURES if scenario.debris.asset and scenario.contact.enabled \
+        else SUMMARY_MEASURES
 
 
 @dataclass(frozen=True)
@@ -77,11 +140,9 @@ class Sweep:
     """Overrides of each variant (the [set] ones included), in run order."""
 
 
-def load_sweep(path: str | Path) -> Sweep:
-    """Parse and validate a sweep file; every variant's scene is built, so a bad key or value
-    is one clear error before anything runs."""
-    from .scenario import load, to_dict
-
+def read_plan(path: str | Path, keys: tuple[str, ...]) -> dict:
+    """A sweep's or a study's TOML document; one clear error if it cannot be read or has a key
+    outside ``keys``."""
     path = Path(path)
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -89,19 +150,51 @@ def load_sweep(path: str | Path) -> Sweep:
         raise ScenarioError(f"{path}: cannot read: {exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: malformed TOML: {exc}") from None
-    unknown = sorted(set(doc) - {"scene", "mode", "set", "vary", "variant"})
+    unknown = sorted(set(doc) - set(keys))
     if unknown:
-        raise ScenarioError(f"{path}: unknown key '{unknown[0]}' (expected scene, mode, set, "
-                            "vary, variant)")
+        raise ScenarioError(f"{path}: unknown key '{unknown[0]}' (expected "
+                            f"{', '.join(keys)})")
+    return doc
+
+
+def base_scene(doc: dict, path: Path) -> str:
+    """The plan's ``scene``: a name, or a path (relative to the plan file)."""
     scene = doc.get("scene")
     if not isinstance(scene, str):
         raise ScenarioError(f"{path}: scene: expected a scene name or path, got {scene!r}")
     if scene.endswith(".toml") and not Path(scene).is_absolute():
         scene = str(path.parent / scene)
+    return scene
+
+
+def build_variants(scene: str, fixed: dict, variants: list[dict], path: Path,
+                   label: str = "variant") -> list:
+    """The scene of every variant (``fixed`` overrides, then the variant's), validated: a bad
+    key or value is one error naming the variant (``label`` and its index)."""
+    from .scenario import load
+
+    base = load(scene)
+    built = []
+    for k, overrides in enumerate(variants):
+        try:
+            built.append(base.with_overrides(fixed | overrides))
+        except ScenarioError as exc:
+            raise ScenarioError(f"{path}: {label} {k}: {exc}") from None
+    return built
+
+
+def load_sweep(path: str | Path) -> Sweep:
+    """Parse and validate a sweep file; every variant's scene is built, so a bad key or value
+    is one clear error before anything runs."""
+    from .scenario import to_dict
+
+    path = Path(path)
+    doc = read_plan(path, ("scene", "mode", "set", "vary", "variant"))
+    scene = base_scene(doc, path)
     mode = doc.get("mode", "factorial")
-    fixed = _table(doc.get("set", {}), path, "set")
+    fixed = plan_table(doc.get("set", {}), path, "set")
     if mode == "factorial":
-        vary = _table(doc.get("vary", {}), path, "vary")
+        vary = plan_table(doc.get("vary", {}), path, "vary")
         for key, values in vary.items():
             if not isinstance(values, list) or not values:
                 raise ScenarioError(f"{path}: vary.{key}: expected a non-empty list of values")
@@ -111,74 +204,93 @@ def load_sweep(path: str | Path) -> Sweep:
         variants = doc.get("variant")
         if not isinstance(variants, list) or not variants:
             raise ScenarioError(f"{path}: mode 'list' needs [[variant]] tables of overrides")
-        variants = [_table(v, path, f"variant[{k}]") for k, v in enumerate(variants)]
+        variants = [plan_table(v, path, f"variant[{k}]") for k, v in enumerate(variants)]
     else:
         raise ScenarioError(f"{path}: mode: expected 'factorial' or 'list', got {mode!r}")
     swept = tuple(dict.fromkeys(k for v in variants for k in v))
-    complete = []
-    for k, overrides in enumerate(variants):
-        try:
-            built = to_dict(load(scene, fixed | overrides))
-        except ScenarioError as exc:
-            raise ScenarioError(f"{path}: variant {k}: {exc}") from None
-        # every swept key in every row: the base scene's value where a variant keeps it
-        complete.append(fixed | {key: _lookup(built, key) for key in swept})
+    built = build_variants(scene, fixed, variants, path)
+    # every swept key in every row: the base scene's value where a variant keeps it
+    complete = [fixed | {key: lookup(to_dict(b), key) for key in swept} for b in built]
     return Sweep(scene=scene, swept=swept, variants=tuple(complete))
 
 
-def _lookup(doc: dict, key: str):
-    for part in key.split("."):
+def lookup(doc: dict, key: str):
+    """The value of a dotted scene key (``name[i]``: a vector's component) in a nested dict."""
+    from .scenario import split_component
+
+    name, component = split_component(key)
+    for part in name.split("."):
         doc = doc[part]
-    return doc
+    return doc if component is None else doc[component]
 
 
-def _table(value, path: Path, name: str) -> dict:
+def plan_table(value, path: Path, name: str) -> dict:
+    """``value`` if it is a table (of scene keys), else one clear error naming it."""
     if not isinstance(value, dict):
         raise ScenarioError(f"{path}: [{name}] must be a table of scene keys, got {value!r}")
     return value
 
 
-def run_variant(index: int, scene: str, overrides: dict, out: str,
-                measures: dict[str, Callable] | None = None) -> dict:
-    """Run one variant into ``out`` and summarize it: a row of the sweep table. Never raises
-    for a failing variant: its status says what happened (``diverged``, ``error``)."""
+def run_scene(scene: str, overrides: dict, out: str | None = None,
+              measures: Measures | None = None) -> dict:
+    """Run ``scene`` with ``overrides`` into the recording ``out`` (None: a temporary file,
+    deleted once measured) and summarize it: ``status``, ``message``, ``wall_s`` [s],
+    ``steps`` and each of ``measures`` (default: :func:`summary_measures` of the scene).
+    Never raises for a failing run: its status says what happened (``diverged``, ``error``)."""
     from .recording import open_recording
     from .scenario import load
     from .simulate import run
 
-    measures = SUMMARY_MEASURES if measures is None else measures
-    row = {"variant": index, **overrides, "status": "error", "message": "", "wall_s": None,
-           "steps": None, "recording": out}
+    row = {"status": "error", "message": "", "wall_s": None, "steps": None}
+    values = {}
     start = time.perf_counter()
-    try:
-        result = run(load(scene, overrides), out, force=True)
-        row |= {"status": result.status, "steps": result.stats.get("steps")}
-    except BulletnetError as exc:  # a diverged run keeps its recording (status 'diverged')
-        row |= {"status": "diverged" if exc.exit_code == 3 else "error", "message": str(exc)}
-    except Exception as exc:  # noqa: BLE001 (one bad variant must not stop the sweep)
-        row["message"] = f"{type(exc).__name__}: {exc}"
-    row["wall_s"] = time.perf_counter() - start
-    for name, measure in measures.items():
-        row[name] = None
-        if row["status"] == "completed":
-            row[name] = measure(open_recording(out))
-    return row
+    with tempfile.TemporaryDirectory(prefix="bulletnet-") as scratch:
+        path = out or os.path.join(scratch, "run.h5")
+        try:
+            scenario = load(scene, overrides)
+            measures = summary_measures(scenario) if measures is None else measures
+            values = dict.fromkeys(measures)
+            result = run(scenario, path, force=True)
+            row |= {"status": result.status, "steps": result.stats.get("steps")}
+            row["wall_s"] = time.perf_counter() - start
+            rec = open_recording(path)
+            values = {name: measure(rec) for name, measure in measures.items()}
+        except BulletnetError as exc:  # a diverged run keeps its recording (status 'diverged')
+            row |= {"status": "diverged" if exc.exit_code == 3 else "error",
+                    "message": str(exc)}
+        except Exception as exc:  # noqa: BLE001 (one bad variant must not stop the sweep)
+            row |= {"status": "error", "message": f"{type(exc).__name__}: {exc}"}
+    if row["wall_s"] is None:
+        row["wall_s"] = time.perf_counter() - start
+    return row | values
+
+
+def run_variant(index: int, scene: str, overrides: dict, out: str,
+                measures: Measures | None = None) -> dict:
+    """Run one variant into ``out`` and summarize it (:func:`run_scene`): a row of the sweep
+    table."""
+    row = run_scene(scene, overrides, out, measures)
+    head = {k: row.pop(k) for k in ("status", "message", "wall_s", "steps")}
+    return {"variant": index, **overrides, **head, "recording": out, **row}
+
+
+def kernel_kind(scenario) -> tuple:
+    """What decides the compiled kernels a run loads: engine, integrator, bending."""
+    return (scenario.simulation.engine, scenario.simulation.integrator,
+            scenario.bending.enabled)
 
 
 def warm_up(scene: str, variants: tuple[dict, ...]) -> None:
     """Load the compiled kernels the variants use in this process (one record interval of the
-    first variant of each integrator and bending setting), so that no variant's wall time
-    includes it."""
+    first variant of each :func:`kernel_kind`), so that no variant's wall time includes it."""
     from .scenario import load
     from .simulate import run
 
     seen = set()
     for overrides in variants:
         variant = load(scene, overrides)
-        kind = (variant.simulation.engine, variant.simulation.integrator,
-                variant.bending.enabled)
-        if kind not in seen:
-            seen.add(kind)
+        if kernel_kind(variant) not in seen:
+            seen.add(kernel_kind(variant))
             try:
                 run(variant.with_overrides(
                     {"scene.duration": 1.0 / variant.simulation.record_rate}))
@@ -196,47 +308,78 @@ def estimated_cost(scene: str, overrides: dict) -> float:
     return (s.net.nodes_per_side ** 2 + 4) * steps * (2.0 if s.bending.enabled else 1.0)
 
 
+def fan_out(fn: Callable[..., dict], jobs: list[tuple], lost: Callable[[tuple, str], dict], *,
+            scheduler: str | None = None, workers: int = 2, serial: bool = False,
+            warm: tuple[str, tuple[dict, ...]] | None = None,
+            costs: list[float] | None = None) -> Iterator[dict]:
+    """Call ``fn(*job)`` for every job and yield each result as it finishes: on Dask (a local
+    cluster of ``workers`` processes, or ``scheduler``), or one after another in this process
+    with ``serial``. ``fn`` must not raise (it reports a failure in its result); a job whose
+    worker died or was lost yields ``lost(job, message)`` instead, and the others go on.
+    ``warm``: (scene, variants) whose kernels each worker loads first (:func:`warm_up`);
+    ``costs``: the jobs' relative costs, handed out longest first, so that no long job is left
+    running alone at the end."""
+    if serial:
+        if warm is not None:
+            warm_up(*warm)
+        for job in jobs:
+            yield fn(*job)
+        return
+    order = sorted(range(len(jobs)), key=lambda k: -costs[k]) if costs else range(len(jobs))
+    with dask_client(scheduler, workers) as client:
+        from dask.distributed import as_completed
+
+        if warm is not None:
+            client.run(warm_up, *warm)
+        futures = {client.submit(fn, *jobs[k], pure=False, priority=len(jobs) - rank): k
+                   for rank, k in enumerate(order)}
+        for future in as_completed(futures):
+            try:
+                result = future.result()
+            except Exception as exc:  # noqa: BLE001 (a lost worker costs its job, no more)
+                result = lost(jobs[futures[future]], f"{type(exc).__name__}: {exc}")
+            future.release()
+            yield result
+
+
 def run_sweep(sweep: Sweep, out: Path, scheduler: str | None = None, workers: int = 2,
               serial: bool = False, log=None) -> list[dict]:
     """Run every variant (on Dask, or one after another in this process with ``serial``) and
-    return the table's rows in variant order."""
+    return the table's rows in variant order; a variant whose worker died is a row with
+    status ``failed``."""
     runs = out / "runs"
     runs.mkdir(parents=True, exist_ok=True)
     jobs = [(k, sweep.scene, v, str(runs / f"variant_{k:03d}.h5"))
             for k, v in enumerate(sweep.variants)]
-    if serial:
-        warm_up(sweep.scene, sweep.variants)
-        rows = []
-        for job in jobs:
-            rows.append(run_variant(*job))
-            if log is not None:
-                log(_row_text(rows[-1]))
-        return rows
-    with dask_client(scheduler, workers) as client:
-        client.run(warm_up, sweep.scene, sweep.variants)
-        # longest first, so that no long variant is left running alone at the end
-        jobs.sort(key=lambda job: -estimated_cost(sweep.scene, job[2]))
-        futures = [client.submit(run_variant, *job, pure=False, priority=len(jobs) - k)
-                   for k, job in enumerate(jobs)]
-        rows = []
-        from dask.distributed import as_completed
 
-        for future in as_completed(futures):
-            rows.append(future.result())
-            if log is not None:
-                log(_row_text(rows[-1]))
+    def lost(job: tuple, message: str) -> dict:
+        k, _, overrides, path = job
+        return {"variant": k, **overrides, "status": "failed", "message": message,
+                "wall_s": None, "steps": None, "recording": path}
+
+    rows = []
+    costs = None if serial else [estimated_cost(sweep.scene, job[2]) for job in jobs]
+    for row in fan_out(run_variant, jobs, lost, scheduler=scheduler, workers=workers,
+                       serial=serial, warm=(sweep.scene, sweep.variants), costs=costs):
+        rows.append(row)
+        if log is not None:
+            log(_row_text(rows[-1]))
     return sorted(rows, key=lambda r: r["variant"])
 
 
 @contextlib.contextmanager
 def dask_client(scheduler: str | None, workers: int):
     """A Dask client on ``scheduler``, or on a local cluster of ``workers`` processes (one
-    thread each: the compiled kernels hold the GIL), closed on exit."""
+    thread each: the compiled kernels hold the GIL), closed on exit. The local scheduler hands
+    a worker one job at a time and does not retry a job whose worker died (it would likely
+    kill the next one too): a lost worker costs one job. A remote scheduler follows its own
+    ``distributed.scheduler.allowed-failures`` (Dask's default retries a job 3 times)."""
     try:
+        import dask
         from dask.distributed import Client, LocalCluster
     except ImportError:
         raise ScenarioError(
-            "sweeps need dask.distributed: pip install 'bulletnet[sweep]'") from None
+            "sweeps and studies need dask.distributed: pip install 'bulletnet[sweep]'") from None
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="10s")
@@ -245,8 +388,11 @@ def dask_client(scheduler: str | None, workers: int):
         with client:
             yield client
         return
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+    config = {"distributed.scheduler.allowed-failures": 0,
+              "distributed.scheduler.worker-saturation": 1.0}
+    with dask.config.set(config), LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True,
+            dashboard_address=None) as cluster, Client(cluster) as client:
         yield client
 
 
@@ -255,31 +401,38 @@ def _row_text(row: dict) -> str:
     return f"variant {row['variant']:3d}: {row['status']:<10} {wall}"
 
 
-def write_table(rows: list[dict], out: Path) -> list[Path]:
-    """``OUT/sweep.csv``, and ``OUT/sweep.parquet`` if pyarrow is installed; their paths."""
-    columns = list(dict.fromkeys(k for r in rows for k in r))
-    written = [out / "sweep.csv"]
-    with written[0].open("w", newline="") as f:
+def write_table(rows: list[dict], out: Path, stem: str = "sweep",
+                columns: list[str] | None = None) -> list[Path]:
+    """``OUT/STEM.csv``, and ``OUT/STEM.parquet`` if pyarrow is installed, each replaced
+    whole (written beside, then renamed: a reader never sees half a table); their paths.
+    ``columns``: their order (default: as the rows first name them)."""
+    columns = columns or list(dict.fromkeys(k for r in rows for k in r))
+    written = [out / f"{stem}.csv"]
+    partial = written[0].with_suffix(".csv.partial")
+    with partial.open("w", newline="") as f:
         writer = csv.DictWriter(f, columns)
         writer.writeheader()
         writer.writerows({k: ("" if r.get(k) is None else r.get(k)) for k in columns}
                          for r in rows)
+    os.replace(partial, written[0])
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError:
         return written
-    written.append(out / "sweep.parquet")
+    written.append(out / f"{stem}.parquet")
+    partial = written[1].with_suffix(".parquet.partial")
     pq.write_table(pa.Table.from_pylist([{k: r.get(k) for k in columns} for r in rows]),
-                   written[1])
+                   partial)
+    os.replace(partial, written[1])
     return written
 
 
 def plot_sweep(rows: list[dict], swept: tuple[str, ...], out: Path,
                measures: tuple[str, ...] = (*SUMMARY_MEASURES, "wall_s")) -> list[Path]:
     """One PNG per swept parameter, ``OUT/figures/PARAM.png``: each measure (a panel) against
-    the parameter's values, completed variants only (numeric and true/false parameters).
-    Returns the paths."""
+    the parameter's values, completed variants only (numeric and true/false parameters and
+    measures). Returns the paths."""
     from .plots import _pyplot
 
     plt = _pyplot()
@@ -291,7 +444,8 @@ def plot_sweep(rows: list[dict], swept: tuple[str, ...], out: Path,
     for key in numeric:
         fig, axes = plt.subplots(1, len(measures), figsize=(3.2 * len(measures), 3.2))
         for ax, name in zip(np.atleast_1d(axes), measures, strict=True):
-            points = [(float(r[key]), r[name]) for r in done if r.get(name) is not None]
+            points = [(float(r[key]), r[name]) for r in done
+                      if isinstance(r.get(name), (int, float))]
             if points:
                 x, y = zip(*points, strict=True)
                 ax.plot(x, y, "o", alpha=0.7)
