@@ -349,7 +349,7 @@ seed = 1
         assert row["first_contact_s"] == bn.metrics.first_contact_time(rec) < 1.0
         assert row["max_nodes_in_contact"] == rec.contacts["count"].max() > 0
         assert row["max_wrap"] == bn.metrics.wrap(rec).max() > 0
-        assert row["leave_s"] is None and row["outcome"] is None
+        assert row["leave_s"] is None and row["outcome"] == rec.attrs["outcome"]
     path = tmp_path / "out" / "runs" / "run_00000.h5"
     with h5py.File(path, "a") as f:
         f.attrs["outcome"] = "captured"
