@@ -11,6 +11,13 @@ and docs/figures/viewer_capture.png from the two 120 s capture recordings,
     bulletnet run capture --bending --out capture_bending.h5
     python docs/viewer_figures.py capture capture_plain.h5 capture_bending.h5
 
+and docs/figures/viewer_closing.png from the two 120 s closing captures at 60 s, the debris
+held in the cinched nets (the cables drawn with the threads),
+
+    bulletnet run capture_closing --out closing_plain.h5
+    bulletnet run capture_closing --bending --out closing_bending.h5
+    python docs/viewer_figures.py closing closing_plain.h5 closing_bending.h5
+
 The capture picture is taken at the frame of 20-30 s where the net wraps the debris best: the
 largest, over those frames, of the smaller of the two recordings' wrap fractions
 (:func:`bulletnet.metrics.wrap`); the script prints the time and both fractions. Its camera
@@ -88,6 +95,8 @@ def main(which: str, *paths: str) -> None:
     elif which == "capture":
         at = best_wrap_time(list(paths))
         screenshot(list(paths), at, OUT / "viewer_capture.png", [10.0, at], zoom=1.8)
+    elif which == "closing":
+        screenshot(list(paths), 60.0, OUT / "viewer_closing.png", [10.0, 30.0, 60.0], zoom=1.8)
     else:
         raise SystemExit(__doc__)
 
