@@ -174,7 +174,7 @@ def test_envisat_tumble_is_recorded_on_its_surface(tmp_path, engine):
     scene = bn.load_scenario("capture_envisat", {
         "net.nodes_per_side": 2, "debris.position": [0.0, 0.0, 1e4], "scene.duration": 4.0,
         "simulation.engine": engine, "simulation.dt": 0.004, "simulation.record_rate": 1.0,
-        "contact.enabled": engine == "fast"})
+        "contact.enabled": engine == "fast", "outcome.enabled": engine == "fast"})
     envisat = bn.load_debris("envisat")
     axis = Rotation.from_rotvec(np.radians(scene.debris.rotation)).apply(
         envisat.principal_axes[:, 2])
