@@ -35,9 +35,10 @@ paper allows; for Table 4, where ours equals it) within ``--window`` of the iden
 and the wording band where all worded numbers hold at once. Edges by ``scipy.optimize.brentq``
 between evaluated elevations. The fold ratio (0.25, stated by the paper; the corner masses
 sit on the diagonals at the same fraction of their thread) is checked by refitting the
-elevation (coarsely: 1 deg) at 0.2, 0.25 and 0.3, with and without the slack intervals. The adopted value is the identified one rounded to 0.5 deg; the
-120 s capture runs there and at 45 deg, with and without bending: first contact, wrap, leave
-time, and Fig. 11's description as numbers; and the first contact alone (CONTACT_S runs) at
+elevation (coarsely: 1 deg) at 0.2, 0.25 and 0.3, with and without the slack intervals. The
+adopted value is the identified one rounded to 0.5 deg; the 120 s capture runs there and at
+45 deg, with and without bending: first contact, wrap, leave time, and Fig. 11's description
+as numbers; and the first contact alone (CONTACT_S runs) at
 the band's edges and under other capture set-ups the paper's words allow (:data:`SETUPS`).
 
 Each run's measures are cached in OUT/runs/*.json (delete them to start over). Writes
