@@ -385,31 +385,46 @@ def comparison(measures: dict) -> dict:
 
 def capture(runs: Path, elevation_deg: float, bending: bool) -> dict:
     """The 120 s capture at this elevation [deg]: :func:`bulletnet.metrics.capture_summary`'s
-    scalars and, at Fig. 11's times, the mouth area over L^2 [-], the ratio of the mouth's two
-    diagonals (1: symmetric) [-], the wrap [-] and the nodes in contact [-]."""
+    scalars; the nodes touching first, as [row, column] of the net [-]; and at Fig. 11's
+    times the mouth area over L^2 [-], the mouth's two diagonals' mean over the open net's,
+    L sqrt(2) [-], and their ratio (1: symmetric) [-], the wrap [-], the nodes in contact [-],
+    the net's Eq. 13 height [m] and how far the corner masses are past the debris' centre of
+    mass along z [m]."""
     name = f"capture_{elevation_deg:.6f}_{'bending' if bending else 'plain'}"
 
     def measure() -> dict:
         rec, wall = run(runs / f"{name}.h5", "capture",
                         {"launch.elevation": elevation_deg, "bending.enabled": bending})
         summary = bn.metrics.capture_summary(rec)
-        area = bn.metrics.mouth_area(rec) / bn.metrics.side_length(rec) ** 2
+        side = bn.metrics.side_length(rec)
+        area = bn.metrics.mouth_area(rec) / side**2
         c = net_corners(rec.nodes_per_side)
         xy = rec.position[:, :, :2]
         diagonals = np.stack([np.linalg.norm(xy[:, c[3]] - xy[:, c[0]], axis=1),
                               np.linalg.norm(xy[:, c[2]] - xy[:, c[1]], axis=1)])
+        ns = rec.nodes_per_side
+        height = bn.metrics.net_height(rec)
+        past = (rec.position[:, ns * ns:, 2].mean(axis=1)
+                - bn.metrics.debris_center_of_mass(rec)[:, 2])
+        touched = np.nonzero(rec.contacts["count"] > 0)[0]
+        first = np.nonzero(rec.contacts["node_force"][touched[0]] > 0)[0] if touched.size else []
         snapshots = {}
         for t in FIG11_TIMES_S:
             k = frame(rec, t)
             snapshots[f"{t:g}"] = {"mouth_area_fraction": float(area[k]),
+                                   "diagonal_fraction": float(diagonals[:, k].mean()
+                                                              / (side * np.sqrt(2.0))),
                                    "diagonal_ratio": float(diagonals[:, k].min()
                                                            / diagonals[:, k].max()),
                                    "wrap": summary["wrap"][k],
-                                   "nodes_in_contact": summary["nodes_in_contact"][k]}
+                                   "nodes_in_contact": summary["nodes_in_contact"][k],
+                                   "net_height_m": float(height[k]),
+                                   "corner_masses_past_debris_m": float(past[k])}
         return {"wall_s": wall,
                 **{k: summary[k] for k in ("first_contact_s", "leave_s", "max_wrap",
                                            "max_wrap_time_s", "max_nodes_in_contact",
                                            "max_energy_gain_J")},
+                "first_contact_nodes_row_column": [list(divmod(int(i), ns)) for i in first],
                 "fig11_snapshots": snapshots}
 
     return cached(runs / f"{name}.json", measure)
