@@ -29,10 +29,11 @@ def test_bending_vs_plain(tmp_path):
     assert (tmp_path / "deployment_plain.h5").is_file()
     assert (tmp_path / "deployment_bending.h5").is_file()
     rmse = float(out.split("position RMSE max / avg: ")[1].split(" / ")[1].split()[0])
-    assert rmse > 0.01  # the two runs differ by centimetres after 1 s [m]
-    # bending opens the mouth sooner (Sec. 4.2): the 6 x 6 net within 1 s, not without it
+    assert rmse > 0.01  # the two runs differ by centimetres after 1.4 s [m]
+    # bending opens the mouth sooner (Sec. 4.2): the 6 x 6 net reaches 90 % within the run
+    # with bending (at 1.30 s, launched at the scenes' 56.5 deg), not without it (1.46 s)
     assert "plain: 90 % deployed: not within the run" in out
-    assert float(out.split("bending: 90 % deployed: ")[1].split(" s,")[0]) <= 1.0
+    assert "bending: 90 % deployed: not within the run" not in out
 
 
 def test_capture(tmp_path):

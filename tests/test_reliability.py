@@ -21,8 +21,9 @@ from bulletnet.errors import ScenarioError
 from bulletnet.scenario import from_dict, to_dict
 from tests.conftest import small_scene
 
-# a run of a few seconds of wall time: 6 x 6 net, 2 s simulated at dt = 1e-6 s
-SLOW = ["run", "deployment", "--set", "net.nodes_per_side=6", "--duration", "2",
+# a run of a few seconds of wall time: 6 x 6 net, 4 s simulated at dt = 1e-6 s (about 3 s of
+# wall time on a quiet machine; 2 s simulated took 1.4 s, less than the signal tests' wait)
+SLOW = ["run", "deployment", "--set", "net.nodes_per_side=6", "--duration", "4",
         "--record-rate", "200", "--quiet"]
 
 
@@ -82,7 +83,7 @@ def test_sigkill_leaves_a_prefix_of_the_run(tmp_path):
         proc = start(SLOW, out)
         part = tmp_path / f"kill{k}.h5.part"
         wait_for(part)
-        time.sleep(rng.uniform(0.5, 6.0))  # the run takes ~4-8 s here
+        time.sleep(rng.uniform(0.5, 6.0))  # the run takes ~3-6 s here
         proc.send_signal(signal.SIGKILL)
         proc.communicate(timeout=60)
         path = out if out.exists() else part
