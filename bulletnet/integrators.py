@@ -417,14 +417,14 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
     touching = flags[0] or flags[1]
     pending = 0  # steps of rotation not yet applied to (quat, omega)
     hold = 1.0 if method == IMPLICIT_EULER else 0.0
-    if grid.n and not bending and not touching and model.cables.rest.shape[0] == 0:
+    cables = model.cables
+    reeling = cables.rest.shape[0] > 0
+    if grid.n and not bending and not touching and not reeling:
         grid_kernels.free_steps(grid, views, method == IMPLICIT_EULER, steps, dt, tol,
                                 work.cg_iterations)
         work.step_count[0] += steps
         return steps
     taken = 0
-    cables = model.cables
-    reeling = cables.rest.shape[0] > 0
     for step in range(steps):
         if touching and not ensure_pairs(pos, radius, contact):
             break

@@ -143,7 +143,6 @@ def cable_forces(pos, vel, cables, force, linearize, dt):
             dx, dy, dz = _span(pos, nodes, v)
             span = np.sqrt(dx * dx + dy * dy + dz * dz)
             axis[v, 0], axis[v, 1], axis[v, 2] = dx / span, dy / span, dz / span
-            cables.across[v] = span  # the span's length, until the blocks below
             length += span
         for v in range(first, last + 1):
             for a in range(3):
@@ -166,7 +165,8 @@ def cable_forces(pos, vel, cables, force, linearize, dt):
             cables.along[c] = dt * damping + dt * dt * k if on else 0.0
             elastic = dt * dt * k * max(length - cables.rest[c], 0.0)
             for v in range(first, last):
-                cables.across[v] = elastic / cables.across[v] if on else 0.0
+                dx, dy, dz = _span(pos, nodes, v)
+                cables.across[v] = elastic / np.sqrt(dx * dx + dy * dy + dz * dz) if on else 0.0
             cables.across[last] = 0.0
 
 
@@ -245,6 +245,12 @@ def _unit(x, y, z):
     return x * inv, y * inv, z * inv
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _elastic_energy(length, rest, ea):
+    """E A (L - L_0)^2 / (2 L_0) [J] of one cable, 0 if slack (:func:`cable_energy`)."""
+    return 0.5 * ea * (length - rest) ** 2 / rest if length > rest else 0.0
+
+
 @nb.njit(cache=True, error_model="numpy")
 def reel(pos, cables, t, dt):
     """The winches over a step from ``t`` [s] of ``dt`` [s]: from the trigger time, each
@@ -259,9 +265,7 @@ def reel(pos, cables, t, dt):
             continue
         new = max(old - cables.reel_speed[c] * dt, cables.min_rest[c])
         cables.rest_rate[c] = (new - old) / dt
-        length = cable_length(pos, cables, c)
-        ea = cables.rigidity[c]
-        before = 0.5 * ea * (length - old) ** 2 / old if length > old else 0.0
-        after = 0.5 * ea * (length - new) ** 2 / new if length > new else 0.0
+        length, ea = cable_length(pos, cables, c), cables.rigidity[c]
         cables.rest[c] = new
-        cables.work[c] += after - before + cables.damper[c] * (old - new)
+        cables.work[c] += (_elastic_energy(length, new, ea) - _elastic_energy(length, old, ea)
+                           + cables.damper[c] * (old - new))
