@@ -174,8 +174,9 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         show it to the monitor; True: the run stops here (its outcome is decided and the scene
         asks to stop then)."""
         contacts = engine.contact_loads()
-        if wrap_trigger and wrap_fraction(state.position, model.nodes_per_side,
-                                          state.debris[:3]) >= scenario.closing.trigger_wrap:
+        if wrap_trigger and not engine.winches_started and wrap_fraction(
+                state.position, model.nodes_per_side,
+                state.debris[:3]) >= scenario.closing.trigger_wrap:
             engine.start_winches(state.time)
         if recorder is not None:
             recorder.append(state, *engine.thread_loads(state), contacts,

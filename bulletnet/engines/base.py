@@ -106,9 +106,14 @@ class Engine(ABC):
         if cl.trigger == "contact" and first >= 0.0:
             self.start_winches(first + cl.trigger_delay)
 
+    @property
+    def winches_started(self) -> bool:
+        """Whether the winches' start time has been set (by a trigger or the scene)."""
+        return bool(self.cables.start_time[0] < np.inf)
+
     def start_winches(self, t: float) -> None:
         """Start the winches at time ``t`` [s], unless they have been started already."""
-        if self.cables.start_time[0] == np.inf:
+        if not self.winches_started:
             self.cables.start_time[0] = t
 
     def cable_loads(self) -> dict:
