@@ -123,9 +123,10 @@ class Debris:
     extents: np.ndarray
     """Edge lengths of the body-frame bounding box of the parts [m], shape (3,)."""
 
-    @property
+    @functools.cached_property
     def principal_quaternion(self) -> np.ndarray:
-        """:attr:`principal_axes` as a quaternion x, y, z, w [-], shape (4,)."""
+        """:attr:`principal_axes` as a quaternion x, y, z, w [-], shape (4,) (computed once:
+        the fast engine reads it at every debris step)."""
         return matrix_quaternion(self.principal_axes)
 
 

@@ -15,8 +15,10 @@ through (N, 3) views of the rows (:attr:`GridViews`). The contact stage and the 
 springs read those views too.
 
 Layout: :class:`Grid` holds rows of length L >= N (N nodes, padded to a multiple of 8), all
-carved from one 64-byte aligned buffer; thread rows have Ns leading zeros so that thread
-i - Ns and i - 1 of node i exist for every node.
+carved, with the threads' parameters, from one 64-byte aligned buffer (the placement of a
+separately allocated array changed the plain step's time by up to 12 % from run to run); thread
+rows have Ns leading zeros so that thread i - Ns and i - 1 of node i exist for every node,
+and the explicit step's thread loops run over whole vectors (padding threads, never taut).
 """
 
 from __future__ import annotations
@@ -53,7 +55,8 @@ ALIGN = 64
 class Grid(NamedTuple):
     """The grid threads' parameters and the structure-of-arrays state and scratch of a net of
     Ns x Ns nodes, N nodes in all (the net, then the corner masses and any other nodes), and
-    Q other (pair-list) threads. Rows of node quantities have length L >= N."""
+    Q other (pair-list) threads. Rows of node quantities have length L >= N, a multiple of 8
+    long enough for every padding thread's far node."""
 
     ns: int
     """Ns, nodes per side [-]."""
@@ -62,23 +65,26 @@ class Grid(NamedTuple):
     count: int
     """N, all nodes [-]."""
     h_rest: np.ndarray
-    """Rest length of thread i -> i + 1 [m] (+inf at a row's end: never taut), (Ns^2 - 1,)."""
+    """Rest length of thread i -> i + 1 [m], shape (H,): H is Ns^2 - 1 rounded up to a
+    multiple of 8; +inf (never taut, every other parameter zero) at a row's end and on the
+    padding threads i >= Ns^2 - 1."""
     h_k: np.ndarray
-    """Its axial stiffness [N/m], shape (Ns^2 - 1,)."""
+    """Its axial stiffness [N/m], shape (H,)."""
     h_c: np.ndarray
-    """Its axial damping [N s/m], shape (Ns^2 - 1,)."""
+    """Its axial damping [N s/m], shape (H,)."""
     v_rest: np.ndarray
-    """Rest length of thread i -> i + Ns [m], shape (Ns^2 - Ns,)."""
+    """Rest length of thread i -> i + Ns [m], shape (V,): V is Ns^2 - Ns rounded up to a
+    multiple of 8 (+inf on the padding threads)."""
     v_k: np.ndarray
-    """Its axial stiffness [N/m], shape (Ns^2 - Ns,)."""
+    """Its axial stiffness [N/m], shape (V,)."""
     v_c: np.ndarray
-    """Its axial damping [N s/m], shape (Ns^2 - Ns,)."""
+    """Its axial damping [N s/m], shape (V,)."""
     h_bend: np.ndarray
     """Bending parameters of thread i -> i + 1 at column i: k_t [N/m], c_t [N s/m], k_b
-    [N m/rad], c_b [N m s/rad], rest axis in node i's frame (3) [-], shape (7, Ns^2 - 1)
-    (zero at a row's end)."""
+    [N m/rad], c_b [N m s/rad], rest axis in node i's frame (3) [-], shape (7, H)
+    (zero at a row's end and on the padding)."""
     v_bend: np.ndarray
-    """The same for thread i -> i + Ns, shape (7, Ns^2 - Ns)."""
+    """The same for thread i -> i + Ns, shape (7, V)."""
     o_pairs: np.ndarray
     """The other threads' end nodes [-], shape (Q, 2), int64."""
     o_rest: np.ndarray
@@ -88,9 +94,9 @@ class Grid(NamedTuple):
     o_c: np.ndarray
     """Their axial damping [N s/m], shape (Q,)."""
     mass: np.ndarray
-    """Node masses [kg], shape (N,)."""
+    """Node masses [kg], shape (L,) (zero on the padding columns N .. L - 1)."""
     inv_mass: np.ndarray
-    """1 / mass [1/kg], shape (N,)."""
+    """1 / mass [1/kg], shape (L,) (zero on the padding columns: they never move)."""
     x: np.ndarray
     """Positions [m], shape (3, L)."""
     v: np.ndarray
@@ -220,29 +226,32 @@ def build(model: NetModel | None, cables: CableArrays | None = None) -> Grid:
             model.transverse_stiffness, model.transverse_damping, model.bending_stiffness,
             model.bending_damping, model.rest_axis.T])
     n, inner = ns * ns, 2 * ns * (ns - 1)
-    h = np.zeros((10, max(n - 1, 0)))
-    h[0] = np.inf  # a row's end: never taut, every parameter zero
-    v = np.zeros((10, n - ns))
-    for p, (i, j) in enumerate(pairs[:inner]):
-        (h if j == i + 1 else v)[:, i] = per_thread[:, p]
     o = np.ascontiguousarray(per_thread[:, inner:])
     q = o.shape[1]
-    length, wide = _rows(count), ns + n
-    (x, vel, dv, base, bend, other, th, tv, eh, ev, blocks, wh, wv, cg, block_inv, o_axis,
-     bh, bv, quat, omega) = _carve(
-        [(3, length)] * 6 + [(3, wide)] * 4
+    # thread rows padded to whole vectors (the stencils' loops then have no scalar remainder)
+    # with threads that are never taut, as is the thread at a row's end: rest +inf, all else 0
+    h_count, v_count = _rows(max(n - 1, 0)), _rows(n - ns)
+    length = _rows(max(count, h_count + 1, v_count + ns))
+    wide = ns + length
+    (h, v, masses, x, vel, dv, base, bend, other, th, tv, eh, ev, blocks, wh, wv, cg, block_inv,
+     o_axis, bh, bv, quat, omega) = _carve(
+        [(10, h_count), (10, v_count), (2, length)] + [(3, length)] * 6 + [(3, wide)] * 4
         + [(4, wide), (3, wide), (3, wide), (4, 3, length), (9, length), (q, 3), (9, wide),
            (9, wide), (4, length), (3, length)])
+    h[0] = v[0] = np.inf
+    for p, (i, j) in enumerate(pairs[:inner]):
+        (h if j == i + 1 else v)[:, i] = per_thread[:, p]
+    masses[0, :count] = mass
+    masses[1, :count] = 1.0 / mass
     return Grid(
-        ns=ns, n=n, count=count, h_rest=h[0].copy(), h_k=h[1].copy(), h_c=h[2].copy(),
-        v_rest=v[0].copy(), v_k=v[1].copy(), v_c=v[2].copy(), h_bend=h[3:].copy(),
-        v_bend=v[3:].copy(), o_pairs=pairs[inner:].copy(), o_rest=o[0].copy(), o_k=o[1].copy(),
-        o_c=o[2].copy(), mass=mass.copy(), inv_mass=1.0 / mass, x=x, v=vel, q=quat, w=omega,
-        dv=dv, base=base, bend=bend, other=other, th=th, tv=tv, eh=eh, ev=ev, blocks=blocks,
-        wh=wh, wv=wv, cg=cg,
-        block_inv=block_inv, o_tension=np.zeros(q), o_along=np.zeros(q), o_across=np.zeros(q),
-        o_axis=o_axis, o_bend=o[3:7].copy(), o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q),
-        bh=bh, bv=bv, cables=no_cables() if cables is None else cables)
+        ns=ns, n=n, count=count, h_rest=h[0], h_k=h[1], h_c=h[2], v_rest=v[0], v_k=v[1],
+        v_c=v[2], h_bend=h[3:], v_bend=v[3:], o_pairs=pairs[inner:].copy(), o_rest=o[0].copy(),
+        o_k=o[1].copy(), o_c=o[2].copy(), mass=masses[0], inv_mass=masses[1], x=x, v=vel,
+        q=quat, w=omega, dv=dv, base=base, bend=bend, other=other, th=th, tv=tv, eh=eh, ev=ev,
+        blocks=blocks, wh=wh, wv=wv, cg=cg, block_inv=block_inv, o_tension=np.zeros(q),
+        o_along=np.zeros(q), o_across=np.zeros(q), o_axis=o_axis, o_bend=o[3:7].copy(),
+        o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q), bh=bh, bv=bv,
+        cables=no_cables() if cables is None else cables)
 
 
 def views(grid: Grid) -> GridViews:
@@ -338,7 +347,7 @@ def _linearize_stencil(x, v, off, rest, k, c, tension_e, axis, blocks, row, dt, 
                                   if on else 0.0)
 
 
-@nb.njit(cache=True, error_model="numpy", _nrt=False)
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _other_threads(grid, views, dt, linearize):
     """The other threads' and the cables' forces [N] into ``other`` (pair-list kernels on the
     views); with ``linearize`` also their directions and implicit blocks."""
@@ -357,37 +366,48 @@ def _other_threads(grid, views, dt, linearize):
     else:
         axial_forces(views.position, views.velocity, pairs, grid.o_rest, grid.o_k, grid.o_c,
                      False, other, grid.o_tension)
-    cable_forces(views.position, views.velocity, cables, other, linearize, dt)
+    if cables.nodes.shape[0]:
+        cable_forces(views.position, views.velocity, cables, other, linearize, dt)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def thread_forces(grid, views):
     """T e of every grid thread into th and tv, the other threads' forces [N] into other."""
-    ns, n, x, v = U(grid.ns), U(grid.n), grid.x, grid.v
-    _tension_stencil(x, v, ONE, grid.h_rest, grid.h_k, grid.h_c, grid.th, n - ONE, ns)
-    _tension_stencil(x, v, ns, grid.v_rest, grid.v_k, grid.v_c, grid.tv, n - ns, ns)
+    ns, x, v = U(grid.ns), grid.x, grid.v
+    _tension_stencil(x, v, ONE, grid.h_rest, grid.h_k, grid.h_c, grid.th,
+                     U(grid.h_rest.shape[0]), ns)
+    _tension_stencil(x, v, ns, grid.v_rest, grid.v_k, grid.v_c, grid.tv,
+                     U(grid.v_rest.shape[0]), ns)
     _other_threads(grid, views, 0.0, False)
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _net_force(grid, a, i, ns, bending_scale):
+    """Component a of node i's force [N]: base + bending_scale bend + its grid threads
+    (:func:`_neighbours`) + the other threads; zero on a padding column."""
+    start = grid.base[a, i] + bending_scale * grid.bend[a, i]
+    return _neighbours(start, grid.th, grid.tv, a, i, ns, 1.0) + grid.other[a, i]
+
+
 @nb.njit(cache=True, error_model="numpy", _nrt=False)
-def symplectic_step(grid, views, dt, bending_scale):
+def symplectic_step(grid, views, dt, bending_scale, increment):
     """One symplectic Euler step of every node: :func:`thread_forces`, then dv = dt F / m with
-    F = base + bending_scale bend + threads, v <- v + dv, x <- x + dt v, in one pass over the
-    rows."""
-    ns, n, count = U(grid.ns), U(grid.n), U(grid.count)
+    F = :func:`_net_force`, v <- v + dv, x <- x + dt v, in one pass over the rows (padding
+    columns included: they have no force and no mass, and stay at rest); dv is kept in its
+    rows only with ``increment`` (the contact stage reads it)."""
+    ns, length = U(grid.ns), U(grid.x.shape[1])
     x, v, dv, inv_mass = grid.x, grid.v, grid.dv, grid.inv_mass
-    base, bend, other, th, tv = grid.base, grid.bend, grid.other, grid.th, grid.tv
     thread_forces(grid, views)
-    # two passes, each writing one or two rows: LLVM then proves the rows apart with a few
-    # runtime checks and vectorizes both (one pass writing three rows it does not)
     for a in range(U(3)):
-        for i in range(n):
-            f = _neighbours(base[a, i] + bending_scale * bend[a, i], th, tv, a, i, ns, 1.0) \
-                + other[a, i]
-            dv[a, i] = dt * inv_mass[i] * f
-        for i in range(n, count):
-            dv[a, i] = dt * inv_mass[i] * (base[a, i] + bending_scale * bend[a, i] + other[a, i])
-    _move(x, v, dv, dt, count)
+        if increment:
+            for i in range(length):
+                dv[a, i] = dt * inv_mass[i] * _net_force(grid, a, i, ns, bending_scale)
+                v[a, i] += dv[a, i]
+                x[a, i] += dt * v[a, i]
+        else:
+            for i in range(length):
+                v[a, i] += dt * inv_mass[i] * _net_force(grid, a, i, ns, bending_scale)
+                x[a, i] += dt * v[a, i]
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -444,7 +464,8 @@ def _apply(grid, rows, out, rows_view, out_view):
             out[a, i] = mass[i] * rows[a, i]
     add_thread_blocks(rows_view, grid.o_pairs, grid.o_along, grid.o_across, grid.o_axis,
                       out_view)
-    add_cable_product(rows_view, grid.cables, out_view, 0.0, 1.0)
+    if grid.cables.nodes.shape[0]:
+        add_cable_product(rows_view, grid.cables, out_view, 0.0, 1.0)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -493,7 +514,8 @@ def _block_jacobi(grid, views):
                           across[q], axis[q, 0], axis[q, 1], axis[q, 2])
             for a in range(9):
                 inv[a, node] = m[a]
-    add_cable_blocks(grid.cables, views.block_inv)
+    if grid.cables.nodes.shape[0]:
+        add_cable_blocks(grid.cables, views.block_inv)
     for i in range(count):
         _store(inv, i, invert3((inv[0, i], inv[1, i], inv[2, i], inv[3, i], inv[4, i],
                                 inv[5, i], inv[6, i], inv[7, i], inv[8, i])))
@@ -507,6 +529,18 @@ def _dot(a, b, count):
     for i in range(count):
         s += a[0, i] * b[0, i] + a[1, i] * b[1, i] + a[2, i] * b[2, i]
     return s
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _dots(r, z, count):
+    """(:func:`_dot` of r and z, :func:`_dot` of r and r) in one pass: the same sums in the
+    same order, their two dependency chains interleaved."""
+    rz = rr = 0.0
+    for i in range(count):
+        r0, r1, r2 = r[0, i], r[1, i], r[2, i]
+        rz += r0 * z[0, i] + r1 * z[1, i] + r2 * z[2, i]
+        rr += r0 * r0 + r1 * r1 + r2 * r2
+    return rz, rr
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -544,7 +578,8 @@ def implicit_step(grid, views, dt, tol, iterations):
             r[a, i] = dt * (base[a, i] + bend[a, i] + other[a, i])
     add_thread_rhs(views.velocity, grid.o_pairs, grid.o_k, grid.o_along, grid.o_across,
                    grid.o_axis, dt, views.r)
-    add_cable_product(views.velocity, grid.cables, views.r, dt * dt, -1.0)
+    if grid.cables.nodes.shape[0]:
+        add_cable_product(views.velocity, grid.cables, views.r, dt * dt, -1.0)
     m0 = m1 = m2 = 0.0  # the step's exact momentum change (internal forces cancel)
     for i in range(count):
         m0 += r[0, i]
@@ -563,8 +598,7 @@ def implicit_step(grid, views, dt, tol, iterations):
         for a in range(U(3)):
             for i in range(count):
                 d[a, i] = z[a, i]
-        rz = _dot(r, z, count)
-        rr = _dot(r, r, count)
+        rz, rr = _dots(r, z, count)
         for _ in range(4 * grid.count):
             if np.sqrt(rr) <= tol * rhs_norm:
                 break
@@ -575,8 +609,7 @@ def implicit_step(grid, views, dt, tol, iterations):
                     dv[a, i] += alpha * d[a, i]
                     r[a, i] -= alpha * ad[a, i]
             _precondition(inv, r, z, count)
-            rz_new = _dot(r, z, count)
-            rr = _dot(r, r, count)
+            rz_new, rr = _dots(r, z, count)
             beta = rz_new / rz
             rz = rz_new
             for a in range(U(3)):
@@ -610,7 +643,7 @@ def free_steps(grid, views, implicit, steps, dt, tol, iterations):
         if implicit:
             implicit_step(grid, views, dt, tol, iterations)
         else:
-            symplectic_step(grid, views, dt, 0.0)
+            symplectic_step(grid, views, dt, 0.0, False)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")

@@ -438,7 +438,7 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
             if weight > 0.0:
                 grid_kernels.bending(grid, views, work.torque)
             if method == SYMPLECTIC_EULER:
-                grid_kernels.symplectic_step(grid, views, dt, weight)
+                grid_kernels.symplectic_step(grid, views, dt, weight, touching)
             else:
                 grid_kernels.implicit_step(grid, views, dt, tol, work.cg_iterations)
             work.step_count[0] += 1
