@@ -309,7 +309,8 @@ def test_cli_bad_study_is_one_line(tmp_path):
 
 
 def test_example_studies_are_valid():
-    for name in ("study_bending_sensitivity", "study_capture_robustness", "study_ishigami"):
+    for name in ("study_bending_sensitivity", "study_capture_robustness", "study_capture_envelope",
+                 "study_ishigami"):
         study = load_study(bn.scenario.SCENARIO_DIR / f"{name}.toml")
         assert len(study.values) >= 64, name
         assert name not in bn.scenario.scene_names()
