@@ -125,6 +125,8 @@ def test_exported_html_draws_plays_and_steps(browser, runs, empty_scene):
              "the next frame")
     wait_for(lambda: page.text_content("#time-label") ==
              f"t = {replay.time[min(k + 1, times.size - 1)]:.3f} s", 5, "the panel's time")
+    page.click("#bulletnet-prev")
+    wait_for(lambda: abs(slider_value(page) - times[k]) < 1e-6, 10, "the previous frame")
     net_drawn(page)
     assert errors == []
 

@@ -42,18 +42,33 @@
     return document.querySelector('[role="slider"]');
   }
 
-  function seek(k) {
-    // The playback bar's time field takes a typed time [s] (and pauses playback).
-    const input = document.querySelector("input.mantine-NumberInput-input");
-    if (!input) return;
-    const t = data.time[Math.max(0, Math.min(data.time.length - 1, k))];
-    const setter = Object.getOwnPropertyDescriptor(HTMLInputElement.prototype, "value").set;
-    setter.call(input, t.toFixed(4));
-    input.dispatchEvent(new Event("input", { bubbles: true }));
+  function seekTo() {
+    // The playback bar's own handler (viser's updateCurrentTime: jump to a time [s] and pause),
+    // found on the bar's React component. A synthetic click on the bar cannot aim finer than a
+    // whole pixel, and a time typed into its time field is rounded back to 0.1 s.
+    const bar = document.querySelector(".mantine-Slider-root");
+    const key = bar && Object.keys(bar).find((name) => name.startsWith("__reactFiber$"));
+    for (let fiber = key && bar[key]; fiber; fiber = fiber.return) {
+      const props = fiber.memoizedProps;
+      if (props && typeof props.onChange === "function" && "max" in props) return props.onChange;
+    }
+    return null;
   }
 
-  document.getElementById("bulletnet-prev").onclick = () => seek(shown - 1);
-  document.getElementById("bulletnet-next").onclick = () => seek(shown + 1);
+  function step(by) {
+    // One frame from the one the bar is at now. Playback may still add a few ms before the
+    // pause takes effect, so the jump is made again once paused.
+    const slider = playbackSlider();
+    const jump = seekTo();
+    if (!slider || !jump) return;
+    const k = frameAt(parseFloat(slider.getAttribute("aria-valuenow"))) + by;
+    const t = data.time[Math.max(0, Math.min(data.time.length - 1, k))];
+    jump(t);
+    setTimeout(() => jump(t), 100);
+  }
+
+  document.getElementById("bulletnet-prev").onclick = () => step(-1);
+  document.getElementById("bulletnet-next").onclick = () => step(1);
   document.getElementById("bulletnet-fold").onclick = () => box.classList.toggle("folded");
 
   setInterval(() => {

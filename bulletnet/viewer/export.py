@@ -31,6 +31,10 @@ def scene_html(replay: Replay) -> str:
             serializer.insert_sleep(float(replay.time[k] - replay.time[k - 1]))
             for layer, j in zip(layers, replay.index[:, k], strict=True):
                 layer.show(int(j))
+        # The last frame is held one interval: viser's playback restarts once it reaches the
+        # recording's end, so without this the last frame could not be stepped to.
+        serializer.insert_sleep(float(replay.time[-1] - replay.time[-2]) if replay.time.size > 1
+                                else 0.0)
         return serializer.as_html()
 
 
