@@ -54,7 +54,7 @@ def _inside(points, parts, mesh):
     out = np.empty(points.shape[0], dtype=np.bool_)
     normal, origin, rot = np.empty(3), np.zeros(3), np.eye(3)
     for i in range(points.shape[0]):
-        out[i] = debris_distance(points[i], origin, rot, parts, mesh, normal) < 0.0
+        out[i] = debris_distance(points[i], origin, rot, parts, mesh, normal, 0.0) < 0.0
     return out
 
 

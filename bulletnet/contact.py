@@ -228,6 +228,13 @@ def _norm(a):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
+def _row_norm(a, i):
+    """:func:`_norm` of row i of ``a`` (N, 3), without making the row a view (whose
+    reference counting costs more than the norm)."""
+    return math.sqrt(a[i, 0] * a[i, 0] + a[i, 1] * a[i, 1] + a[i, 2] * a[i, 2])
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _slip(rel, n):
     """Remove from the relative velocity ``rel`` [m/s] (3,) its component along the unit
     normal ``n``, in place; return the remaining slip speed [m/s]."""
@@ -271,6 +278,7 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
     cls, kc, cc, mu_s, mu_k = (contact.node_class, contact.stiffness, contact.damping,
                                contact.mu_static, contact.mu_kinetic)
     params, parts, com_body, bound = contact.params, contact.parts, contact.com_body, contact.bound
+    mesh = contact.mesh
     com, quat, vd, wd = contact.com, contact.quat, contact.velocity, contact.omega
     imp, node_imp = contact.impulse, contact.node_impulse
     first, predicted, stats = contact.first_contact, contact.debris_gap, contact.projections
@@ -291,11 +299,11 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
         for a in range(3):
             p0[a] = pos[i, a] - dt * vel[i, a]
             r[a] = p0[a] - com[a]
-        reach = dt * (_norm(vel[i]) + _norm(dv[i]) + surface_speed) + 1e-9
+        reach = dt * (_row_norm(vel, i) + _row_norm(dv, i) + surface_speed) + 1e-9
         if _norm(r) - bound[0] - radius[i] > reach:
             predicted[i] = np.inf
             continue
-        d = debris_distance(p0, origin, rot, parts, contact.mesh, n)
+        d = debris_distance(p0, origin, rot, parts, mesh, n, reach + radius[i])
         s0 = d - radius[i]
         if s0 > reach:
             predicted[i] = np.inf

@@ -30,6 +30,11 @@ LEAF_SIZE = 4
 """Most triangles in a leaf of the hierarchy [-]."""
 
 
+STACK = 64
+"""Most nodes a descent of a hierarchy holds at once: one more than its depth, which the
+halving split keeps near log2 of the triangle count."""
+
+
 class MeshArrays(NamedTuple):
     """Every mesh part of a debris in its part frame, for the compiled contact loop: B nodes
     of the hierarchies and T triangles in all (a part row holds its root node's index)."""
@@ -45,12 +50,16 @@ class MeshArrays(NamedTuple):
     """Unit pseudo-normals of each triangle's features: the face, the edges ab, bc, ca
     (mean of the two faces' normals) and the corners a, b, c (angle-weighted) [-],
     shape (T, 7, 3)."""
+    stack: np.ndarray
+    """Scratch space of a descent of the hierarchy (nodes still to visit) [-], shape
+    (:data:`STACK`,), int64: the compiled distance query allocates nothing."""
 
 
 def no_meshes() -> MeshArrays:
     """Empty mesh arrays (a debris without mesh parts: the same compiled loop)."""
     return MeshArrays(boxes=np.zeros((0, 6)), tree=np.zeros((0, 4), dtype=np.int64),
-                      triangles=np.zeros((0, 3, 3)), normals=np.zeros((0, 7, 3)))
+                      triangles=np.zeros((0, 3, 3)), normals=np.zeros((0, 7, 3)),
+                      stack=np.zeros(STACK, dtype=np.int64))
 
 
 @functools.lru_cache(maxsize=16)
@@ -121,7 +130,8 @@ def build(meshes) -> tuple[MeshArrays, list[int]]:
         normals.append(pn[order])
         first += len(tri)
     return MeshArrays(boxes=np.array(boxes), tree=np.array(tree, dtype=np.int64),
-                      triangles=np.concatenate(triangles), normals=np.concatenate(normals)), roots
+                      triangles=np.concatenate(triangles), normals=np.concatenate(normals),
+                      stack=np.zeros(STACK, dtype=np.int64)), roots
 
 
 def _split(tri, index, boxes, tree, order, first) -> int:

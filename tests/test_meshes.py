@@ -73,6 +73,29 @@ def write(path, mesh):
     return str(path)
 
 
+@pytest.mark.parametrize("asset", ["apollo_csm", "apollo_csm_mesh"])
+def test_distance_with_a_cutoff_is_exact_within_it(asset):
+    # Reference: the distance without a cutoff. The contact stage asks only whether a node
+    # is within its reach, so parts a bound puts beyond the cutoff are left out; wherever
+    # the distance is within the cutoff it must come out bit for bit the same (normal too),
+    # and beyond it, as beyond.
+    rows, mesh = contact.debris_geometry(load_debris(asset).parts)
+    n1, n2 = np.empty(3), np.empty(3)
+    rng = np.random.default_rng(3)
+    near = far = 0
+    for p in rng.uniform([-3.0, -7.0, -3.0], [3.0, 7.0, 3.0], size=(800, 3)):
+        exact = debris_distance(p, np.zeros(3), np.eye(3), rows, mesh, n1)
+        for cutoff in (0.0, 0.05, 0.5):
+            cut = debris_distance(p, np.zeros(3), np.eye(3), rows, mesh, n2, cutoff)
+            if exact <= cutoff:
+                assert cut == exact and (n2 == n1).all()
+                near += 1
+            else:
+                assert cut > cutoff
+                far += 1
+    assert near > 300 and far > 300
+
+
 def test_bad_meshes_are_refused_with_one_line(tmp_path):
     # Reference: a mesh with a hole has no inside, an inverted one a negative volume; each
     # is refused naming the file and what to do.

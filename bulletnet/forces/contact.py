@@ -354,15 +354,14 @@ def _box_gap2(box, x, y, z):
     return gx * gx + gy * gy + gz * gz
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
 def mesh_distance(x, y, z, root, mesh):
     """Signed distance [m] from (x, y, z) [m] to the closed triangle mesh whose hierarchy
     starts at node ``root`` of ``mesh`` (:class:`~bulletnet.mesh.MeshArrays`), and the
     outward normal there: the exact closest point, found by descending the hierarchy past
     every box farther than the best so far; inside where the point lies behind the closest
     feature's pseudo-normal."""
-    tree = mesh.tree
-    stack = np.empty(64, np.int64)
+    tree, stack = mesh.tree, mesh.stack
     stack[0], top = root, 1
     best, cx, cy, cz, feature, tri = np.inf, 0.0, 0.0, 0.0, 0, -1
     while top > 0:
@@ -391,22 +390,36 @@ def mesh_distance(x, y, z, root, mesh):
     return sign * d, sign * ox / d, sign * oy / d, sign * oz / d
 
 
-@nb.njit(cache=True, error_model="numpy")
-def part_distance(row, bx, by, bz, mesh):
+BOUND_MARGIN = 1e-9
+"""How far beyond the cutoff [m] a part's lower bound must lie for :func:`part_distance` to
+leave the part out: far above the round-off of either, so a part left out is one whose
+distance would have compared as beyond the cutoff too."""
+
+
+@nb.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def part_distance(row, bx, by, bz, mesh, cutoff):
     """Signed distance [m] from the body-frame point (bx, by, bz) [m] to the part of
     ``row`` (:data:`PART_COLUMNS`,) (a mesh part's triangles in ``mesh``, a
-    :class:`~bulletnet.mesh.MeshArrays`), and the outward normal there in the body frame."""
+    :class:`~bulletnet.mesh.MeshArrays`), and the outward normal there in the body frame; or
+    (inf, 0, 1, 0) if a lower bound of the distance already lies beyond ``cutoff`` [m]
+    (a frustum's bounding cylinder; a mesh's bounding box, from outside)."""
     dx, dy, dz = bx - row[10], by - row[11], bz - row[12]
     x = row[1] * dx + row[4] * dy + row[7] * dz  # the part frame: R^T (b - t)
     y = row[2] * dx + row[5] * dy + row[8] * dz
     z = row[3] * dx + row[6] * dy + row[9] * dz
+    cutoff += BOUND_MARGIN
     if row[0] == BOX:
         d, nx, ny, nz = box_distance(x, y, z, row[13], row[14], row[15])
     elif row[0] == SPHERE:
         d, nx, ny, nz = sphere_distance(x, y, z, row[13])
     elif row[0] == MESH:
+        if _box_gap2(mesh.boxes[int(row[13])], x, y, z) > cutoff * cutoff:
+            return np.inf, 0.0, 1.0, 0.0
         d, nx, ny, nz = mesh_distance(x, y, z, int(row[13]), mesh)
     else:
+        outer = max(row[15], row[16]) + cutoff  # the bounding cylinder's, squared below
+        if max(row[13] - y, y - row[14]) > cutoff or x * x + z * z > outer * outer:
+            return np.inf, 0.0, 1.0, 0.0
         rho = math.hypot(x, z)
         ex, ez = (x / rho, z / rho) if rho > 1e-12 else (1.0, 0.0)
         d, n_rho, ny = frustum_distance(rho, y, row[13], row[14], row[15], row[16])
@@ -415,13 +428,18 @@ def part_distance(row, bx, by, bz, mesh):
             + row[6] * nz, row[7] * nx + row[8] * ny + row[9] * nz)
 
 
-@nb.njit(cache=True, error_model="numpy")
-def debris_distance(p, origin, rot, parts, mesh, normal):
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
+def debris_distance(p, origin, rot, parts, mesh, normal, cutoff=np.inf):
     """Signed distance [m] from world point p (3,) to the debris whose body frame sits at
     ``origin`` (3,) [m] with rotation ``rot`` (3, 3); ``parts`` (K, :data:`PART_COLUMNS`)
     are its parts, ``mesh`` (:class:`~bulletnet.mesh.MeshArrays`) its mesh parts' triangles.
     The outward world normal goes into ``normal`` (3,). Parts are united by
-    the smallest distance (exact outside the debris)."""
+    the smallest distance (exact outside the debris). Parts shown by a bound to lie beyond
+    ``cutoff`` [m] (default: none) are left out (:func:`part_distance`): the result is the
+    same wherever it is at most ``cutoff``, and inf if every part is left out. Compiled
+    without reference counting (``_nrt=False``, as are the functions it calls): the contact
+    stage calls it for every node near the debris, and counting the references of its
+    array views cost more than the bounds themselves."""
     bx = by = bz = 0.0
     for a in range(3):
         d = p[a] - origin[a]
@@ -430,7 +448,7 @@ def debris_distance(p, origin, rot, parts, mesh, normal):
         bz += rot[a, 2] * d
     best, nbx, nby, nbz = np.inf, 0.0, 1.0, 0.0
     for k in range(parts.shape[0]):
-        d, nx, ny, nz = part_distance(parts[k], bx, by, bz, mesh)
+        d, nx, ny, nz = part_distance(parts[k], bx, by, bz, mesh, cutoff)
         if d < best:
             best, nbx, nby, nbz = d, nx, ny, nz
     for a in range(3):
