@@ -106,11 +106,9 @@ def no_cables() -> CableArrays:
 
 
 def cable_energy(length: np.ndarray, rest: np.ndarray, rigidity: np.ndarray) -> np.ndarray:
-    """Elastic energy E A (L - L_0)^2 / (2 L_0) of cables of length L [m], rest length L_0 [m]
-    and rigidity E A [N] (any broadcastable shapes; 0 where slack) [J]."""
-    stretch = np.maximum(length - rest, 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(stretch > 0.0, 0.5 * rigidity * stretch**2 / rest, 0.0)
+    """:func:`elastic_energy` [J] of cables of length L [m], rest length L_0 [m] and rigidity
+    E A [N], element by element (any broadcastable shapes)."""
+    return np.vectorize(elastic_energy, otypes=[float])(length, rest, rigidity)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -246,8 +244,9 @@ def _unit(x, y, z):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _elastic_energy(length, rest, ea):
-    """E A (L - L_0)^2 / (2 L_0) [J] of one cable, 0 if slack (:func:`cable_energy`)."""
+def elastic_energy(length, rest, ea):
+    """Elastic energy E A (L - L_0)^2 / (2 L_0) [J] of one cable of length L [m], rest length
+    L_0 [m] and rigidity E A [N]; 0 if slack."""
     return 0.5 * ea * (length - rest) ** 2 / rest if length > rest else 0.0
 
 
@@ -267,5 +266,5 @@ def reel(pos, cables, t, dt):
         cables.rest_rate[c] = (new - old) / dt
         length, ea = cable_length(pos, cables, c), cables.rigidity[c]
         cables.rest[c] = new
-        cables.work[c] += (_elastic_energy(length, new, ea) - _elastic_energy(length, old, ea)
+        cables.work[c] += (elastic_energy(length, new, ea) - elastic_energy(length, old, ea)
                            + cables.damper[c] * (old - new))
