@@ -18,9 +18,9 @@ from .errors import BulletnetError, ScenarioError
 
 SI_HELP = "all quantities in SI units; see `bulletnet params SCENE`"
 
-COMPILE_ESTIMATE_S = 25
+COMPILE_ESTIMATE_S = 80
 """Wall time numba takes to compile the kernels of a run [s], measured on a 2-core machine
-(23-28 s for a deployment with or without bending, or a capture)."""
+(75 s for the deployment, 84 s for the capture, each into an empty cache)."""
 
 
 class _Parser(argparse.ArgumentParser):

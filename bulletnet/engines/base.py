@@ -168,9 +168,12 @@ class Engine(ABC):
         each shape (P,); the shear is zero without bending."""
         work = self._loads_work
         quat, omega = self.rotations(state)
-        integrators.increment(integrators.SYMPLECTIC_EULER, 1.0 if self.bending else 0.0,
-                              state.position, state.velocity, quat, omega, self.arrays,
-                              work, self.gravity, self.external, 1.0, 0.0)
+        # the forces alone, as a symplectic step takes them (not through `increment`, whose
+        # implicit branch would be compiled once more for these arrays' layout: 10 s)
+        integrators.external_forces(state.position, state.velocity, quat, omega, self.arrays,
+                                    work, self.gravity, self.external,
+                                    1.0 if self.bending else 0.0, False)
+        integrators.symplectic_increment(state.position, state.velocity, self.arrays, work, 1.0)
         return work.tension.copy(), work.shear.copy()
 
     def stats(self) -> dict:
