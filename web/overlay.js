@@ -42,7 +42,7 @@
     return document.querySelector('[role="slider"]');
   }
 
-  function seekTo() {
+  function barHandler() {
     // The playback bar's own handler (viser's updateCurrentTime: jump to a time [s] and pause),
     // found on the bar's React component. A synthetic click on the bar cannot aim finer than a
     // whole pixel, and a time typed into its time field is rounded back to 0.1 s.
@@ -59,7 +59,7 @@
     // One frame from the one the bar is at now. Playback may still add a few ms before the
     // pause takes effect, so the jump is made again once paused.
     const slider = playbackSlider();
-    const jump = seekTo();
+    const jump = barHandler();
     if (!slider || !jump) return;
     const k = frameAt(parseFloat(slider.getAttribute("aria-valuenow"))) + by;
     const t = data.time[Math.max(0, Math.min(data.time.length - 1, k))];
