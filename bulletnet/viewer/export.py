@@ -33,8 +33,8 @@ def scene_html(replay: Replay) -> str:
                 layer.show(int(j))
         # The last frame is held one interval: viser's playback restarts once it reaches the
         # recording's end, so without this the last frame could not be stepped to.
-        serializer.insert_sleep(float(replay.time[-1] - replay.time[-2]) if replay.time.size > 1
-                                else 0.0)
+        if replay.time.size > 1:
+            serializer.insert_sleep(float(replay.time[-1] - replay.time[-2]))
         return serializer.as_html()
 
 
