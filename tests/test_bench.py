@@ -18,7 +18,7 @@ from bulletnet.bench import (
     pareto_front,
     parse_method,
 )
-from bulletnet.profiling import ENGINE, Profile
+from bulletnet.profiling import ENGINE, Profile, report
 from bulletnet.stability import scene_limits
 
 
@@ -95,17 +95,23 @@ def test_bad_methods_are_one_line_errors(text):
 
 
 def test_profile_accounts_for_the_run_loop(tmp_path):
-    # Reference: the run's own wall time. The timed sections are disjoint parts of the loop,
-    # so they add up to no more than it, and cover nearly all of it; the calibrated force
-    # kernels are part of a step, so they take less than a whole step.
+    # Reference: the run's own wall time, without racing the clock. The timed sections are
+    # disjoint parts of the loop, each timed inside it, so they add up to no more than it;
+    # the report shares the whole loop out (the engine step between forces and integration
+    # by the calibrated split, the rest as "other"), so its rows add up to the loop's time
+    # and no row is negative. How large each share is depends on the machine's load at the
+    # moment: that is a benchmark's question (`bulletnet run --profile`), not a test's.
     profile = Profile()
     result = bn.run(small_scene(**{"scene.duration": 0.1}), tmp_path / "p.h5", profile=profile)
     measured = sum(profile.seconds.values())
-    assert measured <= result.wall_time_s
-    assert measured >= 0.9 * result.wall_time_s
+    assert 0 < measured <= result.wall_time_s
     assert profile.seconds[ENGINE] > 0
     split = profile.split
-    assert 0 < split["force_s_per_step"] < split["step_s_per_step"]
+    assert split["force_s_per_step"] > 0 and split["step_s_per_step"] > 0
+    rows = [float(line.split()[-4]) for line in report(profile, result.wall_time_s, False)
+            if line.endswith("%")]
+    assert min(rows) >= 0
+    assert sum(rows) == pytest.approx(result.wall_time_s, abs=5e-3)  # printed to 1 ms a row
 
 
 def test_profile_sections_are_exclusive():
