@@ -44,7 +44,13 @@ from .forces.bending import (
     relative_rotation_vector,
     transverse_force,
 )
-from .forces.cable import CableArrays, add_cable_blocks, add_cable_product, cable_forces, no_cables
+from .forces.cable import (
+    CableArrays,
+    add_cable_blocks,
+    add_cable_product,
+    cable_forces,
+    clear_cable_nodes,
+)
 from .model import NetModel
 from .topology import thread_pairs
 
@@ -151,8 +157,8 @@ class Grid(NamedTuple):
     [N m] (3), torque on node i [N m] (3), shape (9, Ns + Ns^2)."""
     bv: np.ndarray
     """The same for thread v(i), shape (9, Ns + Ns^2)."""
-    cables: CableArrays
-    """The closing cables (pair-list kernels on the views; empty without)."""
+    cables: CableArrays | None
+    """The closing cables (pair-list kernels on the views); None without."""
 
 
 class GridViews(NamedTuple):
@@ -211,20 +217,14 @@ def _carve(shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
     return out
 
 
-def build(model: NetModel | None, cables: CableArrays | None = None) -> Grid:
+def build(model: NetModel, cables: CableArrays | None = None) -> Grid:
     """The grid of a net that :func:`applies`: its threads' parameters rearranged by stencil
-    and zeroed state and scratch, and its closing ``cables`` (none if None); with model None,
-    an empty grid (``n`` 0: the pair-list path)."""
-    if model is None:
-        ns = count = 0
-        pairs, mass = np.zeros((0, 2), np.int64), np.zeros(0)
-        per_thread = np.zeros((10, 0))
-    else:
-        ns, count, pairs, mass = model.nodes_per_side, model.node_count, model.pairs, model.mass
-        per_thread = np.vstack([  # rows: rest, k, c, then the bending parameters (h_bend)
-            model.rest_length, model.axial_stiffness, model.axial_damping,
-            model.transverse_stiffness, model.transverse_damping, model.bending_stiffness,
-            model.bending_damping, model.rest_axis.T])
+    and zeroed state and scratch, and its closing ``cables`` (None: none)."""
+    ns, count, pairs, mass = model.nodes_per_side, model.node_count, model.pairs, model.mass
+    per_thread = np.vstack([  # rows: rest, k, c, then the bending parameters (h_bend)
+        model.rest_length, model.axial_stiffness, model.axial_damping,
+        model.transverse_stiffness, model.transverse_damping, model.bending_stiffness,
+        model.bending_damping, model.rest_axis.T])
     n, inner = ns * ns, 2 * ns * (ns - 1)
     o = np.ascontiguousarray(per_thread[:, inner:])
     q = o.shape[1]
@@ -251,7 +251,7 @@ def build(model: NetModel | None, cables: CableArrays | None = None) -> Grid:
         blocks=blocks, wh=wh, wv=wv, cg=cg, block_inv=block_inv, o_tension=np.zeros(q),
         o_along=np.zeros(q), o_across=np.zeros(q), o_axis=o_axis, o_bend=o[3:7].copy(),
         o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q), bh=bh, bv=bv,
-        cables=no_cables() if cables is None else cables)
+        cables=cables)
 
 
 def views(grid: Grid) -> GridViews:
@@ -348,14 +348,6 @@ def _linearize_stencil(x, v, off, rest, k, c, tension_e, axis, blocks, row, dt, 
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _has_cables(grid):
-    """Whether the net has closing cables. The grid kernels call the cable kernels only then:
-    a call with the empty bundle still costs the reference counting of its 18 arrays (10 % of
-    the plain step, measured)."""
-    return grid.cables.nodes.shape[0] > 0
-
-
-@nb.njit(cache=True, error_model="numpy", inline="always")
 def _other_threads(grid, views, dt, linearize):
     """The other threads' and the cables' forces [N] into ``other`` (pair-list kernels on the
     views); with ``linearize`` also their directions and implicit blocks."""
@@ -364,9 +356,7 @@ def _other_threads(grid, views, dt, linearize):
         for end in range(2):
             for a in range(3):
                 other[pairs[q, end], a] = 0.0
-    for v in range(cables.nodes.shape[0]):
-        for a in range(3):
-            other[cables.nodes[v], a] = 0.0
+    clear_cable_nodes(cables, other)
     if linearize:
         axial_linearization(views.position, views.velocity, pairs, grid.o_rest, grid.o_k,
                             grid.o_c, False, dt, other, grid.o_tension, grid.o_along,
@@ -374,8 +364,7 @@ def _other_threads(grid, views, dt, linearize):
     else:
         axial_forces(views.position, views.velocity, pairs, grid.o_rest, grid.o_k, grid.o_c,
                      False, other, grid.o_tension)
-    if _has_cables(grid):
-        cable_forces(views.position, views.velocity, cables, other, linearize, dt)
+    cable_forces(views.position, views.velocity, cables, other, linearize, dt)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -472,8 +461,7 @@ def _apply(grid, rows, out, rows_view, out_view):
             out[a, i] = mass[i] * rows[a, i]
     add_thread_blocks(rows_view, grid.o_pairs, grid.o_along, grid.o_across, grid.o_axis,
                       out_view)
-    if _has_cables(grid):
-        add_cable_product(rows_view, grid.cables, out_view, 0.0, 1.0)
+    add_cable_product(rows_view, grid.cables, out_view, 0.0, 1.0)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -522,8 +510,7 @@ def _block_jacobi(grid, views):
                           across[q], axis[q, 0], axis[q, 1], axis[q, 2])
             for a in range(9):
                 inv[a, node] = m[a]
-    if _has_cables(grid):
-        add_cable_blocks(grid.cables, views.block_inv)
+    add_cable_blocks(grid.cables, views.block_inv)
     for i in range(count):
         _store(inv, i, invert3((inv[0, i], inv[1, i], inv[2, i], inv[3, i], inv[4, i],
                                 inv[5, i], inv[6, i], inv[7, i], inv[8, i])))
@@ -586,8 +573,7 @@ def implicit_step(grid, views, dt, tol, iterations):
             r[a, i] = dt * (base[a, i] + bend[a, i] + other[a, i])
     add_thread_rhs(views.velocity, grid.o_pairs, grid.o_k, grid.o_along, grid.o_across,
                    grid.o_axis, dt, views.r)
-    if _has_cables(grid):
-        add_cable_product(views.velocity, grid.cables, views.r, dt * dt, -1.0)
+    add_cable_product(views.velocity, grid.cables, views.r, dt * dt, -1.0)
     m0 = m1 = m2 = 0.0  # the step's exact momentum change (internal forces cancel)
     for i in range(count):
         m0 += r[0, i]
@@ -643,15 +629,16 @@ def implicit_step(grid, views, dt, tol, iterations):
 
 
 @nb.njit(cache=True, error_model="numpy", _nrt=False)
-def free_steps(grid, views, implicit, steps, dt, tol, iterations):
-    """``steps`` steps of symplectic Euler (or, with ``implicit``, implicit Euler) of a net
-    with no bending and no contact: the threads, gravity, loads and external forces only.
-    (One compiled loop around the step kernels: no per-step bookkeeping.)"""
+def free_steps(grid, views, steps, dt, tol, iterations):
+    """``steps`` steps of symplectic Euler (``tol`` None) or of implicit Euler (CG to the
+    relative residual ``tol``) of a net with no bending, no contact and no cables: the
+    threads, gravity, loads and external forces only. (One compiled loop around the step
+    kernels: no per-step bookkeeping; each integrator compiles only its own step.)"""
     for _ in range(steps):
-        if implicit:
-            implicit_step(grid, views, dt, tol, iterations)
-        else:
+        if tol is None:
             symplectic_step(grid, views, dt, 0.0, False)
+        else:
+            implicit_step(grid, views, dt, tol, iterations)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")

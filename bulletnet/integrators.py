@@ -44,7 +44,6 @@ from .forces.cable import (
     add_cable_blocks,
     add_cable_product,
     cable_forces,
-    no_cables,
     reel,
 )
 from .model import NetModel
@@ -109,13 +108,14 @@ class ModelArrays(NamedTuple):
     (:func:`rotational_bounds`)."""
     rot_k: np.ndarray
     """Gershgorin bound of each node's angular stiffness [N m/rad], shape (N,)."""
-    cables: CableArrays
-    """The closing cables and their winches (:mod:`bulletnet.forces.cable`; empty without)."""
+    cables: CableArrays | None
+    """The closing cables and their winches (:mod:`bulletnet.forces.cable`); None without
+    (the cable kernels then compile to nothing)."""
 
 
 def model_arrays(model: NetModel, cables: CableArrays | None = None) -> ModelArrays:
     """The model's arrays as the compiled kernels read them, with the closing ``cables``
-    (:func:`~bulletnet.forces.cable.cable_arrays`; none if None)."""
+    (:func:`~bulletnet.forces.cable.cable_arrays`; None, or none in them: no cables)."""
     m = model
     rot_c, rot_k = rotational_bounds(m)
     return ModelArrays(
@@ -125,7 +125,7 @@ def model_arrays(model: NetModel, cables: CableArrays | None = None) -> ModelArr
         rest_axis=m.rest_axis, fixed=m.fixed, load=m.load, bilateral=m.bilateral,
         inv_mass=np.where(m.fixed, 0.0, 1.0 / m.mass),  # clamped nodes: no velocity change
         radius=m.radius, rot_c=rot_c, rot_k=rot_k,
-        cables=no_cables() if cables is None else cables)
+        cables=cables if cables is not None and cables.rest.shape[0] else None)
 
 
 class Workspace(NamedTuple):
@@ -176,7 +176,10 @@ def workspace(n: int, p: int) -> Workspace:
 @nb.njit(cache=True, error_model="numpy")
 def evaluate_bending(pos, vel, quat, omega, model, work):
     """The bending springs afresh: forces [N] into work's bend, torques [N m] into its
-    torque, the threads' shear [N] into its shear."""
+    torque, the threads' shear [N] into its shear. Without bending (``quat`` None) nothing,
+    and nothing is compiled."""
+    if quat is None:
+        return
     work.torque[:] = 0.0
     work.bend[:] = 0.0
     bending_forces(pos, vel, quat, omega, model.pairs, model.rest_axis, model.k_t, model.c_t,
@@ -186,7 +189,9 @@ def evaluate_bending(pos, vel, quat, omega, model, work):
 @nb.njit(cache=True, error_model="numpy")
 def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending_weight,
                     hold):
-    """Gravity, loads, ``external`` [N] (N, 3) and the bending forces into work's force.
+    """Gravity, loads, ``external`` [N] (N, 3) and the bending forces into work's force
+    (``quat``, ``omega``: the nodes' orientations (N, 4) and angular velocities [rad/s]
+    (N, 3), or None without bending).
     With ``bending_weight`` w > 0 the bending springs are evaluated afresh first: their forces
     [N] into work's bend, their torques [N m] into work's torque, the threads' shear [N] into
     work's shear. The bending forces then enter as an impulse (w times, on this step only) or,
@@ -381,77 +386,84 @@ def bending_weight(bending, every, work):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def increment(method, weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol):
-    """All forces at the state (bending with ``weight``), then the method's velocity increment
-    into work's dv; counts the step."""
+def increment(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol):
+    """All forces at the state (bending with ``weight``), then the velocity increment of
+    symplectic Euler (``tol`` None) or of implicit Euler (CG to the relative residual ``tol``)
+    into work's dv; counts the step. Each integrator compiles only its own branch."""
     external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
-                    method == IMPLICIT_EULER)
-    if method == SYMPLECTIC_EULER:
+                    tol is not None)
+    if tol is None:
         symplectic_increment(pos, vel, model, work, dt)
     else:
         implicit_increment(pos, vel, model, work, dt, tol)
     work.step_count[0] += 1
 
 
+def solver_tolerance(method: str, tol: float) -> float | None:
+    """The ``tol`` argument of the compiled steps for integrator ``method``: the CG
+    tolerance ``tol`` [-] for implicit Euler, None for symplectic Euler."""
+    return tol if INTEGRATOR_IDS[method] == IMPLICIT_EULER else None
+
+
 @nb.njit(cache=True, error_model="numpy")
-def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, gravity,
-            external, dt, tol, contact, t0, grid, views):
-    """Take up to ``steps`` steps of ``method`` in place on (pos, vel[, quat, omega]) from
-    time ``t0`` [s], the bending forces every ``every`` steps, then contact
-    (:func:`bulletnet.contact.contact_stage`, if ``contact`` has any on); the winches reel
-    the closing cables before each step (:func:`~bulletnet.forces.cable.reel`). Returns the
-    steps taken: fewer only if the self-contact list must grow first (the caller grows it and
-    continues). The caller checks the result for non-finite values; a diverging chunk is
-    at most one record interval. The bending springs, evaluated every ``every`` steps, act
-    as one impulse standing for the interval (symplectic Euler: the multirate step stays
-    symplectic) or are held over it (implicit Euler: a smooth right-hand side keeps the CG
-    warm start); either way the orientations are advanced once per interval
-    (:func:`~bulletnet.forces.bending.advance_rotation`). With a non-empty ``grid`` the
-    threads and bending springs are its stencils (:mod:`bulletnet.grid`): ``pos``, ``vel``,
-    ``quat``, ``omega`` and work's dv are then its ``views``, and gravity and external have
-    been loaded into its base."""
+def advance(every, steps, pos, vel, quat, omega, model, work, gravity, external, dt, tol,
+            contact, t0, grid, views):
+    """Take up to ``steps`` steps in place on (pos, vel[, quat, omega]) from time ``t0`` [s]:
+    symplectic Euler (``tol`` None) or implicit Euler (CG to the relative residual ``tol``);
+    the bending forces every ``every`` steps (``quat``, ``omega`` None: no bending); then
+    contact (:func:`bulletnet.contact.contact_stage`; ``contact`` None: none); the winches
+    reel the closing cables before each step (:func:`~bulletnet.forces.cable.reel`; model's
+    cables None: none). Returns the steps taken: fewer only if the self-contact list must
+    grow first (the caller grows it and continues). The caller checks the result for
+    non-finite values; a diverging chunk is at most one record interval. The bending
+    springs, evaluated every ``every`` steps, act as one impulse standing for the interval
+    (symplectic Euler: the multirate step stays symplectic) or are held over it (implicit
+    Euler: a smooth right-hand side keeps the CG warm start); either way the orientations are
+    advanced once per interval (:func:`~bulletnet.forces.bending.advance_rotation`). With a
+    ``grid`` (None: the pair-list kernels) the threads and bending springs are its stencils
+    (:mod:`bulletnet.grid`): ``pos``, ``vel``, ``quat``, ``omega`` and work's dv are then its
+    ``views``, and gravity and external have been loaded into its base.
+
+    Each feature left out (None) is pruned by numba before typing: a scene compiles only the
+    kernels it uses (a net without bending no bending kernel, a deployment no contact
+    stage; a net with neither, nor cables, on the grid takes :func:`bulletnet.grid.free_steps`
+    and compiles none of this loop)."""
     n = pos.shape[0]
     mass, fixed, radius = model.mass, model.fixed, model.radius
     torque, dv, gain = work.torque, work.dv, work.gain
-    flags = contact.flags
-    touching = flags[0] or flags[1]
     pending = 0  # steps of rotation not yet applied to (quat, omega)
-    hold = 1.0 if method == IMPLICIT_EULER else 0.0
-    cables = model.cables
-    reeling = cables.rest.shape[0] > 0
-    if grid.n and not bending and not touching and not reeling:
-        grid_kernels.free_steps(grid, views, method == IMPLICIT_EULER, steps, dt, tol,
-                                work.cg_iterations)
-        work.step_count[0] += steps
-        return steps
+    hold = 0.0 if tol is None else 1.0
+    method = SYMPLECTIC_EULER if tol is None else IMPLICIT_EULER
     taken = 0
     for step in range(steps):
-        if touching and not ensure_pairs(pos, radius, contact):
-            break
-        if reeling:
-            reel(pos, cables, t0 + step * dt, dt)
-        weight = bending_weight(bending, every, work)
-        if weight > 0.0 and pending > 0:
-            advance_rotation(quat, omega, gain, torque, hold, pending, dt)
-            pending = 0
-        if grid.n:  # the grid's stencils (bending as in external_forces)
-            if weight > 0.0:
-                grid_kernels.bending(grid, views, work.torque)
-            if method == SYMPLECTIC_EULER:
-                grid_kernels.symplectic_step(grid, views, dt, weight, touching)
+        if contact is not None:
+            if not ensure_pairs(pos, radius, contact):
+                break
+        reel(pos, model.cables, t0 + step * dt, dt)
+        weight = 0.0
+        if quat is not None:
+            weight = bending_weight(True, every, work)
+            if weight > 0.0 and pending > 0:
+                advance_rotation(quat, omega, gain, torque, hold, pending, dt)
+                pending = 0
+        if grid is not None:  # the grid's stencils (bending as in external_forces)
+            if quat is not None:
+                if weight > 0.0:
+                    grid_kernels.bending(grid, views, work.torque)
+            if tol is None:
+                grid_kernels.symplectic_step(grid, views, dt, weight, contact is not None)
             else:
                 grid_kernels.implicit_step(grid, views, dt, tol, work.cg_iterations)
             work.step_count[0] += 1
         else:
-            increment(method, weight, pos, vel, quat, omega, model, work, gravity, external,
-                      dt, tol)
+            increment(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol)
             for i in range(n):
                 for a in range(3):
                     vel[i, a] += dv[i, a]
                     pos[i, a] += dt * vel[i, a]
-        if touching:
+        if contact is not None:
             contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t0 + step * dt)
-        if bending:
+        if quat is not None:
             if weight > 0.0:
                 angular_gains(method, weight, dt, model, gain)
                 if hold == 0.0:  # an impulse standing for the interval
@@ -460,6 +472,7 @@ def advance(method, bending, every, steps, pos, vel, quat, omega, model, work, g
                             omega[i, a] += weight * gain[i] * torque[i, a]
             pending += 1
         taken += 1
-    if pending > 0:
-        advance_rotation(quat, omega, gain, torque, hold, pending, dt)
+    if quat is not None:
+        if pending > 0:
+            advance_rotation(quat, omega, gain, torque, hold, pending, dt)
     return taken

@@ -91,15 +91,19 @@ def instrument(profile: Profile, engine, recorder, monitor=None) -> None:
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _force_loop(steps, bending, every, pos, vel, quat, omega, model, work, gravity, external,
-                grid, views):
-    """The force kernels of ``steps`` steps on a fixed state, bending on its schedule: the
-    grid's (``grid.n`` > 0; pos and vel its views) or the pair list's."""
+def _force_loop(steps, every, pos, vel, quat, omega, model, work, gravity, external, grid,
+                views):
+    """The force kernels of ``steps`` steps on a fixed state, bending on its schedule
+    (``quat`` None: no bending): the grid's (``grid`` not None; pos and vel its views) or the
+    pair list's."""
     for _ in range(steps):
-        weight = bending_weight(bending, every, work)
-        if grid.n:
-            if weight > 0.0:
-                grid_kernels.bending(grid, views, work.torque)
+        weight = 0.0
+        if quat is not None:
+            weight = bending_weight(True, every, work)
+        if grid is not None:
+            if quat is not None:
+                if weight > 0.0:
+                    grid_kernels.bending(grid, views, work.torque)
             grid_kernels.thread_forces(grid, views)
         else:
             external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
@@ -130,18 +134,19 @@ def step_split(engine, state: NetState) -> dict | None:
         copy = state.copy()
         engine.advance(copy, copy.time + steps * engine.dt)
 
-    grid = getattr(engine, "grid", None) or grid_kernels.build(None)
-    if grid.n:  # the grid's force kernels, on its rows (they hold the last state reached)
+    grid = getattr(engine, "grid", None)
+    if grid is not None:  # the grid's force kernels, on its rows (they hold the last state)
         views = engine.views
         pos, vel = views.position, views.velocity
     else:
-        views = grid_kernels.views(grid)
+        views = None
         pos, vel = state.position.copy(), state.velocity.copy()
+    if quat is not None:
+        quat, omega = quat.copy(), omega.copy()
 
     def forces(steps):
-        _force_loop(steps, engine.bending, engine.bending_every, pos, vel, quat.copy(),
-                    omega.copy(), engine.arrays, work, engine.gravity, engine.external, grid,
-                    views)
+        _force_loop(steps, engine.bending_every, pos, vel, quat, omega, engine.arrays, work,
+                    engine.gravity, engine.external, grid, views)
 
     flags = engine.contact.arrays.flags
     saved = flags.copy()

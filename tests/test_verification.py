@@ -11,11 +11,10 @@ import numpy as np
 import pytest
 
 import bulletnet as bn
-from bulletnet import contact, grid, integrators
+from bulletnet import integrators
 from bulletnet.engines import make_engine
 from bulletnet.forces.axial import axial_energy, axial_forces
 from bulletnet.model import NetModel
-from bulletnet.scenario import Scenario
 from bulletnet.state import NetState
 from tests.conftest import small_scene
 
@@ -40,15 +39,13 @@ def pull_apart(model: NetModel, method: str, dt: float, t_end: float, v0: float 
     pos = np.array([[0.0, 0, 0], [L0, 0, 0]])
     vel = np.array([[-v0 / 2, 0, 0], [v0 / 2, 0, 0]])
     w = integrators.workspace(2, 1)
-    no_grid = grid.build(None)  # the pair-list path
     steps = round(t_end / dt)
     lengths = np.empty(steps)
-    for s in range(steps):
-        integrators.advance(integrators.INTEGRATOR_IDS[method], False, 1, 1, pos, vel,
-                            np.zeros((0, 4)), np.zeros((0, 3)), integrators.model_arrays(model),
-                            w, np.zeros(3), np.zeros((2, 3)), dt, 1e-12,
-                            contact.setup(Scenario(), model).arrays, s * dt, no_grid,
-                            grid.views(no_grid))
+    for s in range(steps):  # the pair-list path (grid None), no bending, no contact
+        integrators.advance(1, 1, pos, vel, None, None, integrators.model_arrays(model), w,
+                            np.zeros(3), np.zeros((2, 3)), dt,
+                            integrators.solver_tolerance(method, 1e-12), None, s * dt, None,
+                            None)
         lengths[s] = pos[1, 0] - pos[0, 0]
     return lengths, vel[1, 0] - vel[0, 0]
 

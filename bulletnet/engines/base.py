@@ -153,11 +153,12 @@ class Engine(ABC):
         """Whole number of steps covering ``interval`` [s] with steps no longer than :attr:`dt`."""
         return max(1, math.ceil(interval / self.dt - 1e-9))
 
-    def rotations(self, state: NetState) -> tuple[np.ndarray, np.ndarray]:
-        """(orientation (N, 4), angular velocity (N, 3)) for the kernels; empty without bending."""
+    def rotations(self, state: NetState) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(orientation (N, 4), angular velocity [rad/s] (N, 3)) for the kernels; (None, None)
+        without bending (the kernels then compile no bending code)."""
         if self.bending:
             return state.orientation, state.angular_velocity
-        return np.zeros((0, 4)), np.zeros((0, 3))
+        return None, None
 
     @abstractmethod
     def advance(self, state: NetState, t_end: float) -> None:

@@ -122,19 +122,20 @@ class BulletEngine(Engine):
             self._step_set = dt
         c, w = self.client, self.work
         method = integrators.INTEGRATOR_IDS[self.integrator]
-        held = method == integrators.IMPLICIT_EULER
+        tol = integrators.solver_tolerance(self.integrator, self.cg_tolerance)
+        held = tol is not None
         apply, apply_torque = c.applyExternalForce, c.applyExternalTorque
         frame = self.pb.WORLD_FRAME
         mass_over_dt = self.model.mass[:, None] / dt
         first_step = self.steps
         for _ in range(steps):
             self.arm_winches()
-            reel(state.position, self.cables, state.time + (self.steps - first_step) * dt, dt)
+            reel(state.position, self.arrays.cables,
+                 state.time + (self.steps - first_step) * dt, dt)
             quat, omega = self.rotations(state)
             weight = integrators.bending_weight(self.bending, self.bending_every, w)
-            integrators.increment(method, weight, state.position, state.velocity, quat,
-                                  omega, self.arrays, w, self.gravity, self.external,
-                                  dt, self.cg_tolerance)
+            integrators.increment(weight, state.position, state.velocity, quat, omega,
+                                  self.arrays, w, self.gravity, self.external, dt, tol)
             force = w.dv * mass_over_dt
             for body, f, x in zip(self.bodies, force.tolist(), state.position.tolist(),
                                   strict=True):

@@ -28,18 +28,33 @@ class FastEngine(Engine):
         """The debris' PyBullet world (created on the first step)."""
         use_grid = (scenario.simulation.kernels == "grid" and self.dt > 0
                     and grid_kernels.applies(model))
-        self.grid = grid_kernels.build(model if use_grid else None, self.cables)
-        """The net's grid threads and structure-of-arrays state (empty: the pair-list path)."""
-        self.views = grid_kernels.views(self.grid)
-        """(N, 3) views of the grid's rows."""
+        self.grid = grid_kernels.build(model, self.arrays.cables) if use_grid else None
+        """The net's grid threads and structure-of-arrays state (None: the pair-list path)."""
+        self.views = grid_kernels.views(self.grid) if use_grid else None
+        """(N, 3) views of the grid's rows (None on the pair-list path)."""
         self.step_work = self.work._replace(dv=self.views.dv) if use_grid else self.work
         """The workspace the steps use (on the grid: its velocity increment, which the
         contact stage reads, is the grid's rows)."""
+        self.tol = integrators.solver_tolerance(self.integrator, self.cg_tolerance)
+        """The compiled steps' ``tol``: the CG tolerance [-], None for symplectic Euler."""
 
     @property
     def kernels(self) -> str:
         """The thread kernels in use: grid or pairs."""
-        return "grid" if self.grid.n else "pairs"
+        return "pairs" if self.grid is None else "grid"
+
+    @property
+    def free(self) -> bool:
+        """Whether the net is free: on the grid, with no bending, no contact and no cables.
+        Its steps are then :func:`bulletnet.grid.free_steps` alone."""
+        return (self.grid is not None and not self.bending and self.contact_arrays is None
+                and self.arrays.cables is None)
+
+    @property
+    def contact_arrays(self):
+        """The contact stage's arrays, or None if no contact is on (none is compiled)."""
+        a = self.contact.arrays
+        return a if a.flags.any() else None
 
     def advance(self, state: NetState, t_end: float) -> None:
         interval = t_end - state.time
@@ -53,7 +68,7 @@ class FastEngine(Engine):
             self.rigid = RigidDebris(self.debris, state.debris)
         quat, omega = self.rotations(state)
         a = self.contact.arrays
-        on_grid = self.grid.n > 0
+        on_grid = self.grid is not None
         if on_grid:
             base = self.model.mass[:, None] * self.gravity + self.model.load + self.external
             grid_kernels.load(self.grid, state, base)
@@ -62,6 +77,7 @@ class FastEngine(Engine):
                 quat, omega = self.views.quat, self.views.omega
         else:
             pos, vel = state.position, state.velocity
+        free = self.free
         done = 0
         while done < steps:
             todo = min(chunk, steps - done)
@@ -70,11 +86,16 @@ class FastEngine(Engine):
                 a.com[:], a.quat[0] = state.debris[:3], state.debris[3:7]
                 a.velocity[:], a.omega[0] = state.debris[7:10], state.debris[10:]
                 a.impulse[:] = 0.0
-            taken = integrators.advance(
-                integrators.INTEGRATOR_IDS[self.integrator], self.bending, self.bending_every,
-                todo, pos, vel, quat, omega, self.arrays, self.step_work, self.gravity,
-                self.external, dt, self.cg_tolerance, a, state.time + done * dt, self.grid,
-                self.views)
+            if free:
+                grid_kernels.free_steps(self.grid, self.views, todo, dt, self.tol,
+                                        self.work.cg_iterations)
+                self.step_work.step_count[0] += todo
+                taken = todo
+            else:
+                taken = integrators.advance(
+                    self.bending_every, todo, pos, vel, quat, omega, self.arrays,
+                    self.step_work, self.gravity, self.external, dt, self.tol,
+                    self.contact_arrays, state.time + done * dt, self.grid, self.views)
             if taken < todo:  # the self-contact list is full: grow it, go on
                 self.contact = contact.grow_pair_list(self.contact)
                 a = self.contact.arrays

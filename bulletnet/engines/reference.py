@@ -47,7 +47,7 @@ class ReferenceEngine(Engine):
         pos = y[: 3 * n].reshape(n, 3)
         vel = y[3 * n: 6 * n].reshape(n, 3)
         if not self.bending:
-            return pos, vel, np.zeros((0, 4)), np.zeros((0, 3))
+            return pos, vel, None, None
         quat = y[6 * n: 10 * n].reshape(n, 4)
         quat = quat / np.linalg.norm(quat, axis=1)[:, None]
         return pos, vel, quat, y[10 * n:].reshape(n, 3)
@@ -55,9 +55,9 @@ class ReferenceEngine(Engine):
     def _rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
         m, w = self.model, self.work
         pos, vel, quat, omega = self._split(y)
-        integrators.increment(integrators.SYMPLECTIC_EULER, 1.0 if self.bending else 0.0, pos,
-                              vel, quat, omega, self.arrays, w, self.gravity,
-                              self.external, 1.0, 0.0)  # dt = 1: dv is the acceleration [m/s^2]
+        # symplectic Euler's increment (tol None) with dt = 1: dv is the acceleration [m/s^2]
+        integrators.increment(1.0 if self.bending else 0.0, pos, vel, quat, omega, self.arrays,
+                              w, self.gravity, self.external, 1.0, None)
         parts = [vel * self._free, w.dv]
         if self.bending:
             alpha = w.torque / m.inertia[:, None] * self._free

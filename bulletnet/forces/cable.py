@@ -25,6 +25,9 @@ L' - L_0' (a cable reeled in at the speed its far end follows is not being stret
 winch's work is T times the length it reels: the elastic energy E A (L - L_0)^2 / (2 L_0) that
 the change of L_0 adds at the current positions, plus the damper's force times that length;
 the mechanical energy may rise by that work and no more.
+
+A net without cables passes None for them: each kernel's body is then pruned by numba on the
+argument's type, so a scene without cables compiles none of them and its steps call nothing.
 """
 
 from __future__ import annotations
@@ -39,8 +42,8 @@ from .axial import add_block, add_pair, block_product, kelvin_voigt
 
 class CableArrays(NamedTuple):
     """The closing cables as the compiled kernels read them, for C cables with V vertices in
-    all (:func:`cable_arrays`); empty arrays without cables. The first eight fields are the
-    model's; the rest is written by the kernels."""
+    all (:func:`cable_arrays`). The first eight fields are the model's; the rest is written
+    by the kernels."""
 
     nodes: np.ndarray
     """Node of each vertex, cable after cable [-], shape (V,), int64."""
@@ -98,13 +101,6 @@ def cable_arrays(nodes: np.ndarray, start: np.ndarray, rest: np.ndarray, rigidit
         axis=np.zeros((v, 3)), across=np.zeros(v), along=np.zeros(c))
 
 
-def no_cables() -> CableArrays:
-    """Empty cable arrays (the same types: one compiled loop)."""
-    empty = np.zeros(0)
-    return cable_arrays(np.zeros(0, np.int64), np.zeros(1, np.int64), empty, empty, empty,
-                        empty, empty, empty)
-
-
 def cable_energy(length: np.ndarray, rest: np.ndarray, rigidity: np.ndarray) -> np.ndarray:
     """:func:`elastic_energy` [J] of cables of length L [m], rest length L_0 [m] and rigidity
     E A [N], element by element (any broadcastable shapes)."""
@@ -133,6 +129,8 @@ def cable_forces(pos, vel, cables, force, linearize, dt):
     """Add every cable's force [N] into ``force`` (N, 3); write tensions, lengths and the
     vertices' g into ``cables``; with ``linearize`` also the implicit blocks for a step of
     ``dt`` [s] (see the module doc)."""
+    if cables is None:  # no cables: this specialization compiles to nothing
+        return
     nodes, start, grad, axis = cables.nodes, cables.start, cables.grad, cables.axis
     for c in range(start.shape[0] - 1):
         first, last = start[c], start[c + 1] - 1
@@ -168,6 +166,16 @@ def cable_forces(pos, vel, cables, force, linearize, dt):
             cables.across[last] = 0.0
 
 
+@nb.njit(cache=True, error_model="numpy")
+def clear_cable_nodes(cables, out):
+    """Zero the rows of ``out`` (N, 3) of every cable vertex's node."""
+    if cables is None:
+        return
+    for v in range(cables.nodes.shape[0]):
+        for a in range(3):
+            out[cables.nodes[v], a] = 0.0
+
+
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def _rank_one(x, cables, c):
     """g . x over cable c's vertices (x (N, 3) by node)."""
@@ -184,6 +192,8 @@ def add_cable_product(x, cables, out, along_scale, sign):
     """out += sign (the cables' implicit blocks applied to x) (N, 3): the rank-one part with
     coefficient ``along`` (or, with ``along_scale`` > 0, along_scale k: the right-hand side's
     stiffness part) and the spans' geometric part."""
+    if cables is None:  # no cables: this specialization compiles to nothing
+        return
     nodes, grad, axis, across = cables.nodes, cables.grad, cables.axis, cables.across
     for c in range(cables.start.shape[0] - 1):
         along = cables.along[c]
@@ -224,6 +234,8 @@ def add_cable_blocks(cables, flat):
     """Add each cable vertex's share of its cable's diagonal block
     (:func:`add_vertex_block`) to its node's row of ``flat``
     (nodes, 9): the 3 x 3 blocks row-major."""
+    if cables is None:  # no cables: this specialization compiles to nothing
+        return
     for c in range(cables.start.shape[0] - 1):
         if cables.along[c] == 0.0:
             continue
@@ -256,6 +268,8 @@ def reel(pos, cables, t, dt):
     shortens its cable's rest length by reel_speed dt (not below min_rest) while the cable's
     last tension is below stall, and sets its rest_rate; its work [J] is the elastic energy
     that adds at ``pos`` plus the last damper force times the length reeled."""
+    if cables is None:  # no cables: this specialization compiles to nothing
+        return
     for c in range(cables.rest.shape[0]):
         cables.rest_rate[c] = 0.0
         old = cables.rest[c]
