@@ -24,8 +24,9 @@ import numpy as np
 from .errors import ScenarioError
 from .mesh import MESH_SUFFIXES, load_mesh
 from .quiet import quiet_stdout
+from .resources import data_dir
 
-ASSET_DIR = Path(__file__).resolve().parent.parent / "assets"
+ASSET_DIR = data_dir("assets")
 """Folder of the shipped debris assets (``apollo_csm`` names ``assets/apollo_csm.toml``)."""
 
 SECTIONS = 256

@@ -18,8 +18,9 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ScenarioError
+from .resources import data_dir
 
-SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+SCENARIO_DIR = data_dir("scenarios")
 """Folder of the named scenes shipped with the project (``bulletnet run deployment``)."""
 
 ENGINES = ("fast", "bullet", "reference")

@@ -12,11 +12,12 @@ from html import escape, unescape
 from pathlib import Path
 
 from ..errors import ScenarioError
+from ..resources import data_dir
 from .panel import Panel
 from .replay import Replay
 from .scene import build_scene, viser_server
 
-WEB = Path(__file__).resolve().parents[2] / "web"
+WEB = data_dir("web")
 """What the HTML export adds to viser's client: the panel's script and style, the index."""
 META = "bulletnet-replay"
 """Name of the ``<meta>`` tag that marks a file as a replay (its content: JSON summary)."""
