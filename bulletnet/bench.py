@@ -202,26 +202,17 @@ def run_grid(scene: Scenario, methods: Sequence[Method], dts: Sequence[float],
     (None if adaptive), stable, status, steps, wall_s [s] (median of ``repeats``),
     wall_s_all [s], real_time_factor [-] (simulated over wall time) and the measures (None for
     a diverged run; its ``message`` says why). Recordings go to ``workdir``."""
+    from .simulate import warm_up
+
     workdir.mkdir(parents=True, exist_ok=True)
     rows = []
     for method in methods:
-        _warm_up(scene, method, dts[0])
+        warm_up(method_scene(scene, method, dts[0]))  # loading kernels is not timed
         for dt in ([None] if method.adaptive else dts):
             rows.append(_grid_point(scene, method, dt, reference, workdir, measures, repeats))
             if log is not None:
                 log(_row_text(rows[-1]))
     return rows
-
-
-def _warm_up(scene: Scenario, method: Method, dt: float) -> None:
-    """One record interval, so that loading compiled kernels is not timed."""
-    from .simulate import run
-
-    warm = method_scene(scene, method, dt)
-    try:
-        run(warm.with_overrides({"scene.duration": 1.0 / warm.simulation.record_rate}))
-    except DivergenceError:
-        pass
 
 
 def _grid_point(scene, method, dt, reference, workdir, measures, repeats) -> dict:

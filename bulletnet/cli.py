@@ -1,5 +1,5 @@
-"""The ``bulletnet`` command line: run, params, compare, metrics, plot, view, bench,
-stability, sweep, study.
+"""The ``bulletnet`` command line: run, scenes, scene, warmup, params, compare, metrics, plot,
+view, bench, stability, sweep, study.
 
 Errors are one line on stderr: exit code 2 for bad input, 3 for a diverged run, 130 for an
 interrupted one."""
@@ -12,15 +12,22 @@ import json
 import math
 import signal
 import sys
+import threading
 import time
 
 from .errors import BulletnetError, ScenarioError
 
 SI_HELP = "all quantities in SI units; see `bulletnet params SCENE`"
 
-COMPILE_ESTIMATE_S = 80
-"""Wall time numba takes to compile the kernels of a run [s], measured on a 2-core machine
-(75 s for the deployment, 84 s for the capture, each into an empty cache)."""
+
+def kernel_group(scene) -> str:
+    """The compiled kernels a scene needs, in words (what a first run compiles: each feature
+    adds its own kernels, docs/development.md)."""
+    parts = [f"{scene.simulation.engine} engine", scene.simulation.integrator.replace("_", " ")]
+    parts += [name for name, on in (("bending", scene.bending.enabled),
+                                    ("contact", scene.contact.enabled),
+                                    ("closing cables", scene.closing.enabled)) if on]
+    return ", ".join(parts)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -77,6 +84,22 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--profile", action="store_true",
                      help="print where the wall time goes (forces, integration, contact, "
                           "recording, I/O) [s]")
+
+    sub.add_parser("scenes", help="list the shipped scenes with their descriptions")
+    scene = sub.add_parser("scene", help="print a shipped scene's TOML, to start one's own: "
+                           "bulletnet scene capture > mine.toml")
+    scene.add_argument("name", help="scene name or path to a .toml")
+    scene.add_argument("--full", action="store_true", help="every key with its value, the "
+                       "scene's base and the defaults resolved (no comments), instead of the "
+                       "file as written")
+
+    warmup = sub.add_parser("warmup", help="compile the kernels of scenes ahead of their runs "
+                            "(e.g. on a cluster's login node before a study); a scene whose "
+                            "kernels are in the cache takes a second")
+    warmup.add_argument("scenes", nargs="*", default=["deployment"], metavar="SCENE",
+                        help="scene names or .toml paths [default: deployment]")
+    warmup.add_argument("--bending", action=argparse.BooleanOptionalAction, default=None,
+                        help="bending on/off in every scene; default: each scene's")
 
     params = sub.add_parser("params", help="print the derived model (Tables 5-7)")
     _add_scene(params)
@@ -350,7 +373,7 @@ def cmd_run(args) -> int:
     scene = _scene(args, flags)
     out = Path(args.out or f"{scene.scene.name}.h5")
     preflight(scene, out, args.force)
-    progress = None if args.quiet else ProgressBar(COMPILE_ESTIMATE_S)
+    progress = None if args.quiet else ProgressBar(kernel_group(scene))
     print(f"bulletnet: {scene.scene.name}: engine {scene.simulation.engine}, bending "
           f"{'on' if scene.bending.enabled else 'off'}, "
           f"{scene.scene.duration:g} s simulated -> {out}", file=sys.stderr)
@@ -388,12 +411,14 @@ class ProgressBar:
     every 10 s when stderr is not a terminal).
 
     While numba compiles kernels its cache lacks (the first run after an install or a change
-    of the source), it says so, with ``compile_estimate`` [s], instead of an ETA; the rate and
-    the ETA count from the first frame after the compilation, once stepping has started."""
+    of the source), it says so, naming the ``group`` of kernels (:func:`kernel_group`), with
+    the time spent so far (on a terminal, updated every second), instead of an ETA; the rate
+    and the ETA count from the first frame after the compilation, once stepping has
+    started."""
 
-    def __init__(self, compile_estimate: float, stream=None):
+    def __init__(self, group: str, stream=None):
         self.stream = stream or sys.stderr
-        self.compile_estimate = compile_estimate
+        self.group = group
         self.last = 0.0
         self.tty = self.stream.isatty()
         self.interval = 0.25 if self.tty else 10.0
@@ -402,19 +427,49 @@ class ProgressBar:
         self.compiling = False
         self.compile_s = 0.0
         """Wall time spent compiling so far [s]."""
+        self._ticker: tuple[threading.Event, threading.Thread] | None = None
+        """(stop, thread) of the running-time display while compiling on a terminal."""
+        self._compile_start = 0.0
+        self._reported = True
+        """Whether the compile time so far has been reported (once stepping resumed)."""
+
+    def _notice(self, seconds: float | None) -> str:
+        spent = f": {seconds:.0f} s" if seconds is not None else " ..."
+        return f"bulletnet: compiling the kernels ({self.group}), once after an install{spent}"
 
     def compile_started(self) -> None:
-        if not self.compile_s and not self.compiling:  # said once a run
-            self._write(f"bulletnet: compiling kernels, first run after install, about "
-                        f"{self.compile_estimate:.0f} s", final=True)
+        if not self.compiling:
+            if not self.compile_s:  # said once a run
+                self._write(self._notice(0.0 if self.tty else None), final=not self.tty)
+            self._compile_start = time.perf_counter()
+            if self.tty:  # the running time, while numba holds the main thread
+                stop = threading.Event()
+                thread = threading.Thread(target=self._tick, args=(stop,), daemon=True)
+                thread.start()
+                self._ticker = (stop, thread)
         self.compiling = True
+
+    def _tick(self, stop: threading.Event) -> None:
+        while not stop.wait(1.0):
+            self._write(self._notice(self.compile_s + time.perf_counter()
+                                     - self._compile_start))
 
     def compile_ended(self, seconds: float) -> None:
         self.compiling = False
         self.compile_s += seconds
         self.origin = None  # the rate restarts at the next frame
+        self._reported = False
+        if self._ticker is not None:
+            stop, thread = self._ticker
+            stop.set()
+            thread.join()
+            self._ticker = None
 
     def __call__(self, t: float, duration: float, wall: float) -> None:
+        if not self._reported:
+            self._write(f"bulletnet: compiled in {self.compile_s:.1f} s; later runs start at "
+                        "once", final=True)
+            self._reported = True
         now = time.perf_counter()
         if self.origin is None:
             # without a compilation, stepping started with the run (wall [s] ago) at t = 0
@@ -442,6 +497,40 @@ class ProgressBar:
     def done(self) -> None:
         if self.tty:
             self.stream.write("\n")
+
+
+def cmd_scenes(args) -> int:
+    from .scenario import load, scene_names
+
+    names = scene_names()
+    width = max(map(len, names))
+    for name in names:
+        print(f"{name:<{width}}  {load(name).scene.description}")
+    print("\n(print one with `bulletnet scene NAME`; run it with `bulletnet run NAME`)")
+    return 0
+
+
+def cmd_scene(args) -> int:
+    from .scenario import load, resolve_path, to_toml
+
+    if args.full:
+        sys.stdout.write(to_toml(load(args.name)))
+    else:
+        path = resolve_path(args.name)
+        load(args.name)  # a valid scene, not a study or sweep file
+        sys.stdout.write(path.read_text(encoding="utf-8"))
+    return 0
+
+
+def cmd_warmup(args) -> int:
+    from .scenario import load
+    from .simulate import warm_up
+
+    overrides = {} if args.bending is None else {"bending.enabled": args.bending}
+    scenes = [load(name, overrides) for name in args.scenes]  # every name checked first
+    for name, scene in zip(args.scenes, scenes, strict=True):
+        print(f"{name}: {warm_up(scene):.1f} s ({kernel_group(scene)})", flush=True)
+    return 0
 
 
 def cmd_params(args) -> int:
@@ -654,8 +743,9 @@ def _terminate(signum, frame):
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    handler = {"run": cmd_run, "params": cmd_params, "compare": cmd_compare,
-               "metrics": cmd_metrics, "plot": cmd_plot, "view": cmd_view,
+    handler = {"run": cmd_run, "scenes": cmd_scenes, "scene": cmd_scene, "warmup": cmd_warmup,
+               "params": cmd_params, "compare": cmd_compare, "metrics": cmd_metrics,
+               "plot": cmd_plot, "view": cmd_view,
                "bench": cmd_bench, "stability": cmd_stability,
                "sweep": cmd_sweep, "study": cmd_study}[args.command]
     signal.signal(signal.SIGTERM, _terminate)

@@ -64,7 +64,8 @@ def _synopsis(prog: str, parser: argparse.ArgumentParser) -> str:
     for action in parser._actions:
         if not action.option_strings and not isinstance(action, argparse._SubParsersAction):
             name = action.metavar or action.dest.upper()
-            words.append({"?": f"[{name}]", "+": f"{name} [{name} ...]"}.get(action.nargs, name))
+            words.append({"?": f"[{name}]", "+": f"{name} [{name} ...]",
+                          "*": f"[{name} ...]"}.get(action.nargs, name))
     return " ".join(words) + " [options]"
 
 

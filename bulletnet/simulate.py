@@ -18,7 +18,7 @@ from .builder import build_model, initial_state
 from .capture_score import OutcomeMonitor, ScoreGeometry, interior_samples, wrap_fraction
 from .debris import body_origin
 from .engines import make_engine
-from .errors import DivergenceError, ScenarioError
+from .errors import BulletnetError, DivergenceError, ScenarioError
 from .profiling import Profile, instrument, step_split
 from .recorder import Recorder
 from .scenario import Scenario, to_toml
@@ -132,6 +132,22 @@ def preflight(scenario: Scenario, out: str | os.PathLike | None, force: bool = F
                 f"{out}: the recording would take about {size / 1e9:.1f} GB; lower "
                 "--record-rate or pass --force")
     return model
+
+
+def warm_up(scenario: Scenario) -> float:
+    """Compile the kernels a run of ``scenario`` uses, or load them from numba's cache: one
+    record interval, recorded to a temporary file (recording uses kernels of its own).
+    Returns its wall time [s]. A run that diverges in it has compiled them all the same."""
+    import tempfile
+
+    start = _time.perf_counter()
+    short = scenario.with_overrides({"scene.duration": 1.0 / scenario.simulation.record_rate})
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            run(short, Path(tmp) / "warm_up.h5")
+        except BulletnetError:
+            pass
+    return _time.perf_counter() - start
 
 
 def run(scenario: Scenario, out: str | os.PathLike | None = None, *,

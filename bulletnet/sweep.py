@@ -275,27 +275,26 @@ def run_variant(index: int, scene: str, overrides: dict, out: str,
 
 
 def kernel_kind(scenario) -> tuple:
-    """What decides the compiled kernels a run loads: engine, integrator, bending."""
+    """What decides the compiled kernels a run loads: engine, integrator, kernels (grid or
+    pairs), bending, contact, closing cables."""
     return (scenario.simulation.engine, scenario.simulation.integrator,
-            scenario.bending.enabled)
+            scenario.simulation.kernels, scenario.bending.enabled, scenario.contact.enabled,
+            scenario.closing.enabled)
 
 
 def warm_up(scene: str, variants: tuple[dict, ...]) -> None:
-    """Load the compiled kernels the variants use in this process (one record interval of the
-    first variant of each :func:`kernel_kind`), so that no variant's wall time includes it."""
+    """Load the compiled kernels the variants use in this process (a short run of the first
+    variant of each :func:`kernel_kind`, :func:`bulletnet.simulate.warm_up`), so that no
+    variant's wall time includes it."""
     from .scenario import load
-    from .simulate import run
+    from .simulate import warm_up as warm_up_scene
 
     seen = set()
     for overrides in variants:
         variant = load(scene, overrides)
         if kernel_kind(variant) not in seen:
             seen.add(kernel_kind(variant))
-            try:
-                run(variant.with_overrides(
-                    {"scene.duration": 1.0 / variant.simulation.record_rate}))
-            except BulletnetError:
-                pass
+            warm_up_scene(variant)
 
 
 def estimated_cost(scene: str, overrides: dict) -> float:

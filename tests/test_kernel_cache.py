@@ -61,11 +61,12 @@ class _Stream(io.StringIO):
 
 def test_progress_says_compiling_instead_of_an_eta():
     # Reference: the definition: while kernels compile the display names the compilation and
-    # its estimate; the rate and ETA count only frames stepped after it.
+    # the kernel group; once stepping resumes it says how long it took; the rate and ETA
+    # count only frames stepped after it.
     from bulletnet.cli import ProgressBar
 
     stream = _Stream()
-    bar = ProgressBar(25, stream)
+    bar = ProgressBar("fast engine, symplectic euler", stream)
     bar.interval = 0.0
     bar.compile_started()
     bar.compile_started()  # a second kernel of the same compilation: said once
@@ -74,9 +75,11 @@ def test_progress_says_compiling_instead_of_an_eta():
     time.sleep(0.05)
     bar(0.2, 1.0, 20.05)
     lines = stream.getvalue().splitlines()
-    assert lines[0] == "bulletnet: compiling kernels, first run after install, about 25 s"
-    assert len(lines) == 3 and "ETA      - s" in lines[1]
-    eta = float(lines[2].split("ETA")[1].split()[0])
+    assert lines[0] == ("bulletnet: compiling the kernels (fast engine, symplectic euler), "
+                        "once after an install ...")
+    assert lines[1] == "bulletnet: compiled in 20.0 s; later runs start at once"
+    assert len(lines) == 4 and "ETA      - s" in lines[2]
+    eta = float(lines[3].split("ETA")[1].split()[0])
     assert eta < 8  # 0.8 s to go at 0.1 s per ~0.05 s; counted from the start, 80 s
 
 
@@ -84,7 +87,7 @@ def test_progress_without_compilation_counts_from_the_start():
     from bulletnet.cli import ProgressBar
 
     stream = _Stream()
-    bar = ProgressBar(25, stream)
+    bar = ProgressBar("fast engine, symplectic euler", stream)
     bar(0.5, 1.0, 2.0)
     assert "compiling" not in stream.getvalue()
     assert "real-time x    0.25  ETA    2.0 s" in stream.getvalue()
@@ -96,7 +99,7 @@ def test_bulletnet_run_reports_a_compilation(tmp_path, monkeypatch, capsys):
     import numba
 
     import bulletnet.simulate
-    from bulletnet.cli import COMPILE_ESTIMATE_S, main
+    from bulletnet.cli import main
 
     real_run = bulletnet.simulate.run
 
@@ -109,6 +112,6 @@ def test_bulletnet_run_reports_a_compilation(tmp_path, monkeypatch, capsys):
     assert main(["run", "deployment", "--set", "net.nodes_per_side=4", "--duration", "0.01",
                  "--out", str(out)]) == 0
     captured = capsys.readouterr()
-    notice = f"compiling kernels, first run after install, about {COMPILE_ESTIMATE_S} s"
-    assert captured.err.count(notice) == 1
+    notice = "compiling the kernels (fast engine, symplectic euler), once after an install"
+    assert captured.err.count(notice) == 1 and "bulletnet: compiled in" in captured.err
     assert "s compiling kernels)" in captured.out
