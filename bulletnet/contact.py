@@ -392,7 +392,9 @@ def build_pairs(pos, radius, contact):
                 count += 1
     meta[0] = count
     meta[2] += 1
-    ref[:] = pos
+    for i in range(pos.shape[0]):  # (a loop: `ref[:] = pos` compiles numba's shape checks)
+        for a in range(3):
+            ref[i, a] = pos[i, a]
     contact.pair_gap[:] = np.inf
     return True
 

@@ -23,6 +23,7 @@ and the explicit step's thread loops run over whole vectors (padding threads, ne
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import numba as nb
@@ -628,17 +629,24 @@ def implicit_step(grid, views, dt, tol, iterations):
     _move(x, v, dv, dt, count)
 
 
-@nb.njit(cache=True, error_model="numpy", _nrt=False)
-def free_steps(grid, views, steps, dt, tol, iterations):
-    """``steps`` steps of symplectic Euler (``tol`` None) or of implicit Euler (CG to the
-    relative residual ``tol``) of a net with no bending, no contact and no cables: the
-    threads, gravity, loads and external forces only. (One compiled loop around the step
-    kernels: no per-step bookkeeping; each integrator compiles only its own step.)"""
-    for _ in range(steps):
-        if tol is None:
-            symplectic_step(grid, views, dt, 0.0, False)
-        else:
-            implicit_step(grid, views, dt, tol, iterations)
+@functools.cache
+def free_steps(implicit: bool):
+    """The compiled loop ``(grid, views, steps, dt, tol, iterations)`` that takes ``steps``
+    steps of implicit Euler (``implicit``: CG to the relative residual ``tol``, ``iterations``
+    (1,) counting) or of symplectic Euler of a net with no bending, no contact and no cables:
+    the threads, gravity, loads and external forces only. (One compiled loop around the step
+    kernels: no per-step bookkeeping. ``implicit`` is a constant of the loop, so numba prunes
+    the other integrator's branch and compiles only the step in use.)"""
+
+    @nb.njit(cache=True, error_model="numpy", _nrt=False)
+    def free_loop(grid, views, steps, dt, tol, iterations):
+        for _ in range(steps):
+            if implicit:
+                implicit_step(grid, views, dt, tol, iterations)
+            else:
+                symplectic_step(grid, views, dt, 0.0, False)
+
+    return free_loop
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")

@@ -23,6 +23,7 @@ Clamped nodes (``model.fixed``) never move or turn.
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import numba as nb
@@ -385,94 +386,105 @@ def bending_weight(bending, every, work):
     return float(every) if work.step_count[0] % every == 0 else 0.0
 
 
-@nb.njit(cache=True, error_model="numpy")
-def increment(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol):
-    """All forces at the state (bending with ``weight``), then the velocity increment of
-    symplectic Euler (``tol`` None) or of implicit Euler (CG to the relative residual ``tol``)
-    into work's dv; counts the step. Each integrator compiles only its own branch."""
-    external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
-                    tol is not None)
-    if tol is None:
-        symplectic_increment(pos, vel, model, work, dt)
-    else:
-        implicit_increment(pos, vel, model, work, dt, tol)
-    work.step_count[0] += 1
+@functools.cache
+def increment(implicit: bool):
+    """The compiled kernel ``(weight, pos, vel, quat, omega, model, work, gravity, external,
+    dt, tol)``: all forces at the state (bending with ``weight``), then the velocity increment
+    of implicit Euler (``implicit``: CG to the relative residual ``tol``) or of symplectic
+    Euler into work's dv; counts the step. (``implicit`` is a constant of the kernel: each
+    integrator compiles only its own increment.)"""
+
+    @nb.njit(cache=True, error_model="numpy")
+    def increment_kernel(weight, pos, vel, quat, omega, model, work, gravity, external, dt,
+                         tol):
+        external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
+                        implicit)
+        if implicit:
+            implicit_increment(pos, vel, model, work, dt, tol)
+        else:
+            symplectic_increment(pos, vel, model, work, dt)
+        work.step_count[0] += 1
+
+    return increment_kernel
 
 
-def solver_tolerance(method: str, tol: float) -> float | None:
-    """The ``tol`` argument of the compiled steps for integrator ``method``: the CG
-    tolerance ``tol`` [-] for implicit Euler, None for symplectic Euler."""
-    return tol if INTEGRATOR_IDS[method] == IMPLICIT_EULER else None
+@functools.cache
+def advance(on_grid: bool, implicit: bool):
+    """The compiled loop ``(every, steps, pos, vel, quat, omega, model, work, gravity,
+    external, dt, tol, contact, t0, grid, views)`` of the grid's stencils (``on_grid``) or the
+    pair-list kernels, with implicit Euler (``implicit``: CG to the relative residual ``tol``)
+    or symplectic Euler. It takes up to ``steps`` steps in place on (pos, vel[, quat, omega])
+    from time ``t0`` [s]: the bending forces every ``every`` steps (``quat``, ``omega`` None:
+    no bending); then contact (:func:`bulletnet.contact.contact_stage`; ``contact`` None:
+    none); the winches reel the closing cables before each step
+    (:func:`~bulletnet.forces.cable.reel`; model's cables None: none). Returns the steps
+    taken: fewer only if the self-contact list must grow first (the caller grows it and
+    continues). The caller checks the result for non-finite values; a diverging chunk is at
+    most one record interval. The bending springs, evaluated every ``every`` steps, act as
+    one impulse standing for the interval (symplectic Euler: the multirate step stays
+    symplectic) or are held over it (implicit Euler: a smooth right-hand side keeps the CG
+    warm start); either way the orientations are advanced once per interval
+    (:func:`~bulletnet.forces.bending.advance_rotation`). On the grid (:mod:`bulletnet.grid`)
+    ``pos``, ``vel``, ``quat``, ``omega`` and work's dv are its ``views``, and gravity and
+    external have been loaded into its base (grid and views are None on the pair list).
 
+    A scene compiles only the kernels it uses: ``on_grid`` and ``implicit`` are constants of
+    the loop and a feature left out is None, and numba prunes those branches before typing
+    (a net without bending compiles no bending kernel, a deployment no contact stage); a
+    free net on the grid (no bending, contact or cables) takes
+    :func:`bulletnet.grid.free_steps` and compiles none of this loop."""
+    step = increment(implicit)
+    hold = 1.0 if implicit else 0.0  # bending held over the interval, or an impulse
+    method = IMPLICIT_EULER if implicit else SYMPLECTIC_EULER
 
-@nb.njit(cache=True, error_model="numpy")
-def advance(every, steps, pos, vel, quat, omega, model, work, gravity, external, dt, tol,
-            contact, t0, grid, views):
-    """Take up to ``steps`` steps in place on (pos, vel[, quat, omega]) from time ``t0`` [s]:
-    symplectic Euler (``tol`` None) or implicit Euler (CG to the relative residual ``tol``);
-    the bending forces every ``every`` steps (``quat``, ``omega`` None: no bending); then
-    contact (:func:`bulletnet.contact.contact_stage`; ``contact`` None: none); the winches
-    reel the closing cables before each step (:func:`~bulletnet.forces.cable.reel`; model's
-    cables None: none). Returns the steps taken: fewer only if the self-contact list must
-    grow first (the caller grows it and continues). The caller checks the result for
-    non-finite values; a diverging chunk is at most one record interval. The bending
-    springs, evaluated every ``every`` steps, act as one impulse standing for the interval
-    (symplectic Euler: the multirate step stays symplectic) or are held over it (implicit
-    Euler: a smooth right-hand side keeps the CG warm start); either way the orientations are
-    advanced once per interval (:func:`~bulletnet.forces.bending.advance_rotation`). With a
-    ``grid`` (None: the pair-list kernels) the threads and bending springs are its stencils
-    (:mod:`bulletnet.grid`): ``pos``, ``vel``, ``quat``, ``omega`` and work's dv are then its
-    ``views``, and gravity and external have been loaded into its base.
-
-    Each feature left out (None) is pruned by numba before typing: a scene compiles only the
-    kernels it uses (a net without bending no bending kernel, a deployment no contact
-    stage; a net with neither, nor cables, on the grid takes :func:`bulletnet.grid.free_steps`
-    and compiles none of this loop)."""
-    n = pos.shape[0]
-    mass, fixed, radius = model.mass, model.fixed, model.radius
-    torque, dv, gain = work.torque, work.dv, work.gain
-    pending = 0  # steps of rotation not yet applied to (quat, omega)
-    hold = 0.0 if tol is None else 1.0
-    method = SYMPLECTIC_EULER if tol is None else IMPLICIT_EULER
-    taken = 0
-    for step in range(steps):
-        if contact is not None:
-            if not ensure_pairs(pos, radius, contact):
-                break
-        reel(pos, model.cables, t0 + step * dt, dt)
-        weight = 0.0
-        if quat is not None:
-            weight = bending_weight(True, every, work)
-            if weight > 0.0 and pending > 0:
-                advance_rotation(quat, omega, gain, torque, hold, pending, dt)
-                pending = 0
-        if grid is not None:  # the grid's stencils (bending as in external_forces)
+    @nb.njit(cache=True, error_model="numpy")
+    def advance_loop(every, steps, pos, vel, quat, omega, model, work, gravity, external, dt,
+                     tol, contact, t0, grid, views):
+        n = pos.shape[0]
+        mass, fixed, radius = model.mass, model.fixed, model.radius
+        torque, dv, gain = work.torque, work.dv, work.gain
+        pending = 0  # steps of rotation not yet applied to (quat, omega)
+        taken = 0
+        for k in range(steps):
+            if contact is not None:
+                if not ensure_pairs(pos, radius, contact):
+                    break
+            reel(pos, model.cables, t0 + k * dt, dt)
+            weight = 0.0
+            if quat is not None:
+                weight = bending_weight(True, every, work)
+                if weight > 0.0 and pending > 0:
+                    advance_rotation(quat, omega, gain, torque, hold, pending, dt)
+                    pending = 0
+            if on_grid:  # the grid's stencils (bending as in external_forces)
+                if quat is not None:
+                    if weight > 0.0:
+                        grid_kernels.bending(grid, views, work.torque)
+                if implicit:
+                    grid_kernels.implicit_step(grid, views, dt, tol, work.cg_iterations)
+                else:
+                    grid_kernels.symplectic_step(grid, views, dt, weight, contact is not None)
+                work.step_count[0] += 1
+            else:
+                step(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol)
+                for i in range(n):
+                    for a in range(3):
+                        vel[i, a] += dv[i, a]
+                        pos[i, a] += dt * vel[i, a]
+            if contact is not None:
+                contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t0 + k * dt)
             if quat is not None:
                 if weight > 0.0:
-                    grid_kernels.bending(grid, views, work.torque)
-            if tol is None:
-                grid_kernels.symplectic_step(grid, views, dt, weight, contact is not None)
-            else:
-                grid_kernels.implicit_step(grid, views, dt, tol, work.cg_iterations)
-            work.step_count[0] += 1
-        else:
-            increment(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol)
-            for i in range(n):
-                for a in range(3):
-                    vel[i, a] += dv[i, a]
-                    pos[i, a] += dt * vel[i, a]
-        if contact is not None:
-            contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t0 + step * dt)
+                    angular_gains(method, weight, dt, model, gain)
+                    if not implicit:  # an impulse standing for the interval
+                        for i in range(n):
+                            for a in range(3):
+                                omega[i, a] += weight * gain[i] * torque[i, a]
+                pending += 1
+            taken += 1
         if quat is not None:
-            if weight > 0.0:
-                angular_gains(method, weight, dt, model, gain)
-                if hold == 0.0:  # an impulse standing for the interval
-                    for i in range(n):
-                        for a in range(3):
-                            omega[i, a] += weight * gain[i] * torque[i, a]
-            pending += 1
-        taken += 1
-    if quat is not None:
-        if pending > 0:
-            advance_rotation(quat, omega, gain, torque, hold, pending, dt)
-    return taken
+            if pending > 0:
+                advance_rotation(quat, omega, gain, torque, hold, pending, dt)
+        return taken
+
+    return advance_loop

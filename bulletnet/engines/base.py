@@ -145,6 +145,11 @@ class Engine(ABC):
         return self.scenario.simulation.integrator
 
     @property
+    def implicit(self) -> bool:
+        """Whether the integrator is implicit Euler (else symplectic Euler)."""
+        return integrators.INTEGRATOR_IDS[self.integrator] == integrators.IMPLICIT_EULER
+
+    @property
     def dt(self) -> float:
         """Requested step [s] (the engine may shorten it to divide the record interval)."""
         return self.scenario.simulation.step

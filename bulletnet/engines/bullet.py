@@ -122,8 +122,8 @@ class BulletEngine(Engine):
             self._step_set = dt
         c, w = self.client, self.work
         method = integrators.INTEGRATOR_IDS[self.integrator]
-        tol = integrators.solver_tolerance(self.integrator, self.cg_tolerance)
-        held = tol is not None
+        held = self.implicit
+        increment = integrators.increment(self.implicit)
         apply, apply_torque = c.applyExternalForce, c.applyExternalTorque
         frame = self.pb.WORLD_FRAME
         mass_over_dt = self.model.mass[:, None] / dt
@@ -134,8 +134,8 @@ class BulletEngine(Engine):
                  state.time + (self.steps - first_step) * dt, dt)
             quat, omega = self.rotations(state)
             weight = integrators.bending_weight(self.bending, self.bending_every, w)
-            integrators.increment(weight, state.position, state.velocity, quat, omega,
-                                  self.arrays, w, self.gravity, self.external, dt, tol)
+            increment(weight, state.position, state.velocity, quat, omega, self.arrays, w,
+                      self.gravity, self.external, dt, self.cg_tolerance)
             force = w.dv * mass_over_dt
             for body, f, x in zip(self.bodies, force.tolist(), state.position.tolist(),
                                   strict=True):

@@ -35,8 +35,6 @@ class FastEngine(Engine):
         self.step_work = self.work._replace(dv=self.views.dv) if use_grid else self.work
         """The workspace the steps use (on the grid: its velocity increment, which the
         contact stage reads, is the grid's rows)."""
-        self.tol = integrators.solver_tolerance(self.integrator, self.cg_tolerance)
-        """The compiled steps' ``tol``: the CG tolerance [-], None for symplectic Euler."""
 
     @property
     def kernels(self) -> str:
@@ -87,14 +85,15 @@ class FastEngine(Engine):
                 a.velocity[:], a.omega[0] = state.debris[7:10], state.debris[10:]
                 a.impulse[:] = 0.0
             if free:
-                grid_kernels.free_steps(self.grid, self.views, todo, dt, self.tol,
-                                        self.work.cg_iterations)
+                grid_kernels.free_steps(self.implicit)(self.grid, self.views, todo, dt,
+                                                       self.cg_tolerance,
+                                                       self.work.cg_iterations)
                 self.step_work.step_count[0] += todo
                 taken = todo
             else:
-                taken = integrators.advance(
+                taken = integrators.advance(on_grid, self.implicit)(
                     self.bending_every, todo, pos, vel, quat, omega, self.arrays,
-                    self.step_work, self.gravity, self.external, dt, self.tol,
+                    self.step_work, self.gravity, self.external, dt, self.cg_tolerance,
                     self.contact_arrays, state.time + done * dt, self.grid, self.views)
             if taken < todo:  # the self-contact list is full: grow it, go on
                 self.contact = contact.grow_pair_list(self.contact)
