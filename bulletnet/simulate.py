@@ -98,10 +98,12 @@ def speed_limit(s: Scenario, state: NetState) -> float:
 
 
 def _check(state: NetState, limit: float) -> str:
-    """Why ``state`` has diverged (non-finite, or a node faster than ``limit`` [m/s]), or ""."""
+    """Why ``state`` has diverged (non-finite, or a node faster than ``limit`` [m/s]), or "".
+    A diverging state's speeds may overflow (inf): that is the finding, not a warning."""
     if not np.isfinite(state.position).all() or not np.isfinite(state.velocity).all():
         return "non-finite state"
-    vmax = float(np.linalg.norm(state.velocity, axis=1).max())
+    with np.errstate(over="ignore"):
+        vmax = float(np.linalg.norm(state.velocity, axis=1).max())
     if vmax > limit:
         return f"a node moves at {vmax:.3g} m/s (limit {limit:.3g} m/s)"
     return ""
