@@ -373,9 +373,8 @@ def cmd_run(args) -> int:
           f"{result.wall_time_s:.2f} s wall{compiling}, real-time factor "
           f"{result.state.time / max(result.wall_time_s, 1e-9):.3g} -> {result.path}")
     if result.outcome:
-        decided = (f", decided at {result.outcome_time_s:.2f} s"
-                   if result.outcome != "undecided" else "")
-        print(f"outcome: {result.outcome}{decided}")
+        print("outcome: " + _outcome_text(result.outcome, result.outcome_time_s,
+                                          result.outcome_reason))
     if profile is not None:
         from .profiling import report
 
@@ -592,7 +591,8 @@ def cmd_metrics(args) -> int:
               f"{capture['max_capture_quality_time_s']:.1f} s); at the end: enclosed "
               f"{capture['enclosed_fraction'][-1]:.3f}, mouth opening "
               f"{capture['mouth_opening'][-1]:.3f}")
-        print(f"outcome: {_outcome_text(capture)}")
+        print("outcome: " + _outcome_text(capture["outcome"], capture["outcome_time_s"],
+                                          capture["outcome_reason"]))
     print("   time [s]  mouth area [m^2]  mouth diagonal [m]  net height [m]"
           + ("  contacts [-]  wrap [-]  enclosed [-]  mouth [-]  quality [-]"
              if capture else ""))
@@ -609,14 +609,11 @@ def cmd_metrics(args) -> int:
     return 0
 
 
-def _outcome_text(doc: dict) -> str:
-    """An outcome as a line: ``escaped, decided at 50.7 s (no contact since 45.7 s)``; the
-    keys of :func:`bulletnet.metrics.capture_summary`."""
-    outcome, decided, since = doc["outcome"], doc["outcome_time_s"], doc["outcome_since_s"]
-    cause = {"captured": f"enclosed and closed since {since:.2f} s",
-             "escaped": f"no contact since {since:.2f} s",
-             "missed": "no contact"}.get(outcome)
-    return f"{outcome}, decided at {decided:.2f} s ({cause})" if cause else outcome
+def _outcome_text(outcome: str, decided: float, reason: str) -> str:
+    """An outcome, when it was decided [s] and why, as a line: ``escaped, decided at 50.60 s
+    (no contact since 45.60 s)``, ``undecided (no contact yet: ...)``."""
+    when = f", decided at {decided:.2f} s" if outcome != "undecided" else ""
+    return f"{outcome}{when} ({reason})"
 
 
 def cmd_plot(args) -> int:

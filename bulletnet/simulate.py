@@ -51,6 +51,8 @@ class RunResult:
     undecided; :class:`~bulletnet.capture_score.OutcomeMonitor`); "" otherwise."""
     outcome_time_s: float = -1.0
     """When the outcome was decided [s]; -1 if undecided or not judged."""
+    outcome_reason: str = ""
+    """Why, in words (:data:`bulletnet.capture_score.REASONS`); "" if not judged."""
 
 
 def frame_times(duration: float, record_rate: float) -> np.ndarray:
@@ -224,7 +226,8 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         outcome_attrs = {}
         if monitor is not None:
             monitor.finish(status == "completed")
-            outcome_attrs = {"outcome": monitor.outcome, "outcome_time_s": monitor.time}
+            outcome_attrs = {"outcome": monitor.outcome, "outcome_time_s": monitor.time,
+                             "outcome_reason": monitor.reason}
         if profile is not None:
             profile.stop()
             if status == "completed":
@@ -243,8 +246,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
     if error is not None:
         raise error
     return RunResult(path=path, status=status, state=state, wall_time_s=wall, stats=stats,
-                     frames=frames, outcome=monitor.outcome if monitor else "",
-                     outcome_time_s=monitor.time if monitor else -1.0)
+                     frames=frames, **outcome_attrs)  # the recording's outcome attributes
 
 
 def _version() -> str:
