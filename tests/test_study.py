@@ -131,6 +131,30 @@ def test_killed_study_resumes_to_the_uninterrupted_table(tmp_path):
     assert all(kept[r["run"]] == r["wall_s"] for r in done)
 
 
+def test_interrupted_dask_study_says_so_in_one_line_and_keeps_its_rows(tmp_path):
+    # Reference: the table itself, and what a terminal's Ctrl-C does: SIGINT to the whole
+    # process group (driver, scheduler, workers). The study stops with exit code 130 and one
+    # line after its progress, without Dask's cancelled jobs or killed workers.
+    path = write(tmp_path, SLOW.format(runs=40, pause=0.3))
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "bulletnet.cli", "study", str(path),
+                             "--out", str(out), "--workers", "2"], cwd=ROOT, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    table = out / "runs.csv"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and (
+            not table.exists() or table.read_text().count("\n") < 4):
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    lines = [line for line in err.splitlines() if line and not line.startswith("study: ")]
+    assert lines[1:] == [f"bulletnet: study interrupted; {table} keeps every finished run: "
+                         "rerun the same command to resume"], err
+    assert 3 <= len(read_table(table)[1]) < 40
+
+
 def test_dead_worker_costs_one_run(tmp_path):
     # Reference: the study's plan. The function kills its worker process on the one run
     # whose x exceeds a threshold set between the two largest draws; that run is a 'failed'
