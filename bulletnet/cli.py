@@ -238,7 +238,8 @@ def _add_study(sub) -> None:
     study.add_argument("--out", metavar="DIR", help="folder for runs.csv, study.json, "
                        "summary.json, figures/ (and runs/ with --record)")
     study.add_argument("--report", metavar="DIR", help="run nothing: write DIR/summary.json "
-                       "and DIR/figures/ from the table of a study (done, running or stopped)")
+                       "and DIR/figures/ from the table of a study (done, running or stopped) "
+                       "and print its probabilities and leading Sobol' indices")
     _add_dask(study, "the runs")
     study.add_argument("--record", action="store_true", help="keep each run's recording as "
                        "DIR/runs/run_NNNNN.h5 (default: summaries only)")
@@ -254,7 +255,7 @@ def cmd_study(args) -> int:
     from pathlib import Path
 
     from .study import load_study, run_study
-    from .study_report import report
+    from .study_report import report, summary_text
 
     if (args.study is None) == (args.report is None):
         raise ScenarioError("give a STUDY.toml to run, or --report DIR, not both")
@@ -263,8 +264,8 @@ def cmd_study(args) -> int:
     if not 0 < args.confidence < 1:
         raise ScenarioError(f"--confidence {args.confidence}: expected a number in (0, 1)")
     if args.report is not None:
-        print("\n".join(str(p) for p in report(Path(args.report), args.confidence,
-                                                 args.bins)))
+        paths = report(Path(args.report), args.confidence, args.bins)
+        print("\n".join([*summary_text(Path(args.report)), *map(str, paths)]))
         return 0
     if args.out is None:
         raise ScenarioError("--out DIR: the study's folder is required (rerun into it to "
