@@ -265,7 +265,8 @@ def capture_summary(rec: Recording) -> dict:
     mechanical energy above its start plus the winches' work (:func:`energy`,
     :func:`winch_work`; a sound run has none), the outcome (:func:`capture_outcome`:
     ``outcome``, ``outcome_time_s`` when decided and ``outcome_since_s`` when its condition
-    began, -1 while undecided, and ``outcome_reason``), the highest capture quality, and the time series."""
+    began, -1 while undecided, and ``outcome_reason``), the highest capture quality, and the
+    time series."""
     count = nodes_in_contact(rec)
     wrapped = wrap(rec)
     k = int(np.argmax(wrapped))

@@ -57,8 +57,9 @@ completed / interrupted / diverged), ``message``, ``wall_time_s`` [s], ``bulletn
 ``first_self_contact_s`` [s] (to the step; -1: none); with ``[outcome]`` on, ``outcome``
 (captured, escaped, missed or undecided), ``outcome_time_s``, when it was decided [s]
 (-1: undecided), and ``outcome_reason``, why in words
-(:data:`bulletnet.capture_score.REASONS`; recordings before it lack it). ``/debris`` carries ``mass`` [kg],
-``inertia`` [kg m^2] (3, 3) about the centre of mass and ``center_of_mass`` [m] (body frame).
+(:data:`bulletnet.capture_score.REASONS`; recordings before it lack it). ``/debris`` carries
+``mass`` [kg], ``inertia`` [kg m^2] (3, 3) about the centre of mass and ``center_of_mass`` [m]
+(body frame).
 
 The file is written as ``NAME.part`` in SWMR mode. Frames are kept in memory and written,
 one block per dataset, after the first frame and then every ``flush_interval`` seconds of
