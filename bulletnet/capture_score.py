@@ -206,12 +206,15 @@ class OutcomeMonitor:
       over ``hold_time``;
     - ``escaped``: after a contact, no contact for ``quiet_time`` with the net's centre of
       mass moving away from the debris';
-    - ``missed``: no contact by ``miss_time`` (0: by the end of a completed run);
+    - ``missed``: no contact by ``miss_time``; with ``miss_time`` 0, by the end of a
+      completed run whose net moves away from the debris at its last frame (a run that ends
+      while the net still approaches it, before contact was possible, stays undecided);
     - ``undecided``: none of these by the end.
 
     The first outcome decided is final; :attr:`time` is when it was decided (the frame that
     completed the hold or the quiet time) and :attr:`since` when its condition began (the
-    hold's first frame, the last contact)."""
+    hold's first frame, the last contact); :attr:`reason` says why, in words, once decided or
+    finished (:data:`REASONS`)."""
 
     def __init__(self, rules: OutcomeRules, geometry: ScoreGeometry):
         self.rules = rules
@@ -222,16 +225,20 @@ class OutcomeMonitor:
         """When the outcome was decided [s]; -1 while undecided."""
         self.since = -1.0
         """When the decided outcome's condition began [s]; -1 while undecided."""
+        self.reason = ""
+        """Why the outcome is what it is (:data:`REASONS`); "" while undecided and running."""
         self._held_from: float | None = None
         self._last_contact: float | None = None
         self._last_time = 0.0
+        self._last_away = False
 
     @property
     def decided(self) -> bool:
         return self.outcome != "undecided"
 
-    def _decide(self, outcome: str, t: float, since: float) -> None:
+    def _decide(self, outcome: str, t: float, since: float, reason: str) -> None:
         self.outcome, self.time, self.since = outcome, t, since
+        self.reason = REASONS[reason].format(since=since, end=t, miss=self.rules.miss_time)
 
     def observe(self, t: float, positions: np.ndarray, velocities: np.ndarray,
                 origin: np.ndarray, quaternion: np.ndarray, debris_velocity: np.ndarray,
@@ -252,7 +259,7 @@ class OutcomeMonitor:
         """Judge the frame at time ``t`` [s] from its score, the nodes that touched the debris
         since the last frame [-] and whether the net moves away from it (:func:`receding`)."""
         r = self.rules
-        self._last_time = t
+        self._last_time, self._last_away = t, away
         if self.decided:
             return
         if contacts > 0:
@@ -261,21 +268,53 @@ class OutcomeMonitor:
             if self._held_from is None:
                 self._held_from = t
             if t - self._held_from >= r.hold_time - TIME_TOLERANCE:
-                self._decide("captured", t, self._held_from)
+                self._decide("captured", t, self._held_from, "captured")
                 return
         else:
             self._held_from = None
         if self._last_contact is not None:
             if t - self._last_contact >= r.quiet_time - TIME_TOLERANCE and away:
-                self._decide("escaped", t, self._last_contact)
+                self._decide("escaped", t, self._last_contact, "escaped")
         elif 0 < r.miss_time <= t + TIME_TOLERANCE:
-            self._decide("missed", t, t)
+            self._decide("missed", t, t, "missed by miss_time")
 
     def finish(self, completed: bool) -> None:
         """The run ended (``completed``: it reached its end, or stopped once decided): a
-        completed run that never touched the debris missed it."""
-        if not self.decided and completed and self._last_contact is None:
-            self._decide("missed", self._last_time, self._last_time)
+        completed run that never touched the debris missed it if its rules judge misses by
+        the end (``miss_time`` 0) and the net was moving away from the debris; otherwise an
+        undecided outcome gets its :attr:`reason`."""
+        if self.decided:
+            return
+        t, miss = self._last_time, self.rules.miss_time
+        if not completed:
+            key = "stopped"
+        elif self._last_contact is not None:
+            key = "touched"
+        elif miss > 0:
+            key = "before miss_time"
+        elif not self._last_away:
+            key = "approaching"
+        else:
+            self._decide("missed", t, t, "missed by the end")
+            return
+        self.reason = REASONS[key].format(end=t, miss=miss)
+
+
+REASONS = {
+    "captured": "enclosed and closed since {since:.2f} s",
+    "escaped": "no contact since {since:.2f} s",
+    "missed by miss_time": "no contact by outcome.miss_time, {miss:g} s",
+    "missed by the end": "no contact by the end, the net moving away from the debris",
+    "stopped": "the run stopped at {end:.2f} s, before its end",
+    "touched": "touched, but neither captured nor escaped by the end, {end:.2f} s",
+    "before miss_time": "no contact yet: the run ended at {end:.2f} s, before "
+                        "outcome.miss_time, {miss:g} s",
+    "approaching": "no contact yet: the run ended at {end:.2f} s with the net still "
+                   "approaching the debris",
+}
+"""The reasons an :class:`OutcomeMonitor` gives (its :attr:`~OutcomeMonitor.reason`), by
+case; ``{since}`` is when the outcome's condition began, ``{end}`` the last frame's time [s],
+``{miss}`` the rules' ``miss_time`` [s]."""
 
 
 def fibonacci_sphere(count: int) -> np.ndarray:

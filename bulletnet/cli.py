@@ -261,7 +261,8 @@ def _add_study(sub) -> None:
     study.add_argument("--out", metavar="DIR", help="folder for runs.csv, study.json, "
                        "summary.json, figures/ (and runs/ with --record)")
     study.add_argument("--report", metavar="DIR", help="run nothing: write DIR/summary.json "
-                       "and DIR/figures/ from the table of a study (done, running or stopped)")
+                       "and DIR/figures/ from the table of a study (done, running or stopped) "
+                       "and print its probabilities and leading Sobol' indices")
     _add_dask(study, "the runs")
     study.add_argument("--record", action="store_true", help="keep each run's recording as "
                        "DIR/runs/run_NNNNN.h5 (default: summaries only)")
@@ -277,7 +278,7 @@ def cmd_study(args) -> int:
     from pathlib import Path
 
     from .study import load_study, run_study
-    from .study_report import report
+    from .study_report import report, summary_text
 
     if (args.study is None) == (args.report is None):
         raise ScenarioError("give a STUDY.toml to run, or --report DIR, not both")
@@ -286,8 +287,8 @@ def cmd_study(args) -> int:
     if not 0 < args.confidence < 1:
         raise ScenarioError(f"--confidence {args.confidence}: expected a number in (0, 1)")
     if args.report is not None:
-        print("\n".join(str(p) for p in report(Path(args.report), args.confidence,
-                                                 args.bins)))
+        paths = report(Path(args.report), args.confidence, args.bins)
+        print("\n".join([*summary_text(Path(args.report)), *map(str, paths)]))
         return 0
     if args.out is None:
         raise ScenarioError("--out DIR: the study's folder is required (rerun into it to "
@@ -396,9 +397,8 @@ def cmd_run(args) -> int:
           f"{result.wall_time_s:.2f} s wall{compiling}, real-time factor "
           f"{result.state.time / max(result.wall_time_s, 1e-9):.3g} -> {result.path}")
     if result.outcome:
-        decided = (f", decided at {result.outcome_time_s:.2f} s"
-                   if result.outcome != "undecided" else "")
-        print(f"outcome: {result.outcome}{decided}")
+        print("outcome: " + _outcome_text(result.outcome, result.outcome_time_s,
+                                          result.outcome_reason))
     if profile is not None:
         from .profiling import report
 
@@ -681,7 +681,8 @@ def cmd_metrics(args) -> int:
               f"{capture['max_capture_quality_time_s']:.1f} s); at the end: enclosed "
               f"{capture['enclosed_fraction'][-1]:.3f}, mouth opening "
               f"{capture['mouth_opening'][-1]:.3f}")
-        print(f"outcome: {_outcome_text(capture)}")
+        print("outcome: " + _outcome_text(capture["outcome"], capture["outcome_time_s"],
+                                          capture["outcome_reason"]))
     print("   time [s]  mouth area [m^2]  mouth diagonal [m]  net height [m]"
           + ("  contacts [-]  wrap [-]  enclosed [-]  mouth [-]  quality [-]"
              if capture else ""))
@@ -698,14 +699,11 @@ def cmd_metrics(args) -> int:
     return 0
 
 
-def _outcome_text(doc: dict) -> str:
-    """An outcome as a line: ``escaped, decided at 50.7 s (no contact since 45.7 s)``; the
-    keys of :func:`bulletnet.metrics.capture_summary`."""
-    outcome, decided, since = doc["outcome"], doc["outcome_time_s"], doc["outcome_since_s"]
-    cause = {"captured": f"enclosed and closed since {since:.2f} s",
-             "escaped": f"no contact since {since:.2f} s",
-             "missed": "no contact"}.get(outcome)
-    return f"{outcome}, decided at {decided:.2f} s ({cause})" if cause else outcome
+def _outcome_text(outcome: str, decided: float, reason: str) -> str:
+    """An outcome, when it was decided [s] and why, as a line: ``escaped, decided at 50.60 s
+    (no contact since 45.60 s)``, ``undecided (no contact yet: ...)``."""
+    when = f", decided at {decided:.2f} s" if outcome != "undecided" else ""
+    return f"{outcome}{when} ({reason})"
 
 
 def cmd_plot(args) -> int:

@@ -23,7 +23,7 @@ import numpy as np
 
 from .errors import ScenarioError
 from .mesh import MESH_SUFFIXES, load_mesh
-from .quiet import quiet_stdout
+from .quiet import bullet_client, pybullet, quiet_stdout
 from .resources import data_dir
 
 ASSET_DIR = data_dir("assets")
@@ -348,8 +348,6 @@ def create_body(client, debris: Debris, position, orientation=(0.0, 0.0, 0.0, 1.
     (world frame). Mass and the principal moments are set explicitly, on an inertial frame at
     the centre of mass along the principal axes, with sleeping and damping off. PyBullet then
     reports the inertial frame's pose: :func:`read_state` turns it back into the body's."""
-    import pybullet
-
     body = client.createMultiBody(
         baseMass=debris.mass, baseCollisionShapeIndex=collision_shape,
         basePosition=list(position), baseOrientation=list(orientation),
@@ -358,7 +356,7 @@ def create_body(client, debris: Debris, position, orientation=(0.0, 0.0, 0.0, 1.
     client.changeDynamics(body, -1, mass=debris.mass,
                           localInertiaDiagonal=debris.principal_moments.tolist(),
                           linearDamping=0.0, angularDamping=0.0,
-                          activationState=pybullet.ACTIVATION_STATE_DISABLE_SLEEPING)
+                          activationState=pybullet().ACTIVATION_STATE_DISABLE_SLEEPING)
     client.resetBaseVelocity(body, list(linear_velocity), list(angular_velocity))
     return body
 
@@ -437,8 +435,7 @@ def collision_shape(client, debris: Debris, sections: int = 48) -> int:
     meshes from files only: OBJ files in a temporary folder)."""
     import tempfile
 
-    import pybullet
-
+    pb = pybullet()
     shapes, frames = [], []
     kw = {"halfExtents": [], "radii": [], "lengths": [], "fileNames": []}
     with tempfile.TemporaryDirectory() as folder:
@@ -446,19 +443,19 @@ def collision_shape(client, debris: Debris, sections: int = 48) -> int:
             position, orientation = np.asarray(part.position), part.quaternion
             half, radius, length, name = [0.0] * 3, 0.0, 0.0, ""
             if part.shape == "box":
-                shapes.append(pybullet.GEOM_BOX)
+                shapes.append(pb.GEOM_BOX)
                 half = (0.5 * np.asarray(part.size)).tolist()
             elif part.shape == "sphere":
-                shapes.append(pybullet.GEOM_SPHERE)
+                shapes.append(pb.GEOM_SPHERE)
                 radius = part.size[0]
             elif part.shape == "frustum" and part.size[2] == part.size[3]:
-                shapes.append(pybullet.GEOM_CYLINDER)  # a cylinder; PyBullet's is along z
+                shapes.append(pb.GEOM_CYLINDER)  # a cylinder; PyBullet's is along z
                 radius, length = part.size[2], part.size[1] - part.size[0]
                 position = position + part.matrix[:, 1] * 0.5 * (part.size[0] + part.size[1])
                 z_to_y = rotation_quaternion([-0.5 * math.pi, 0.0, 0.0])
                 orientation = quaternion_product(orientation, z_to_y)
             else:
-                shapes.append(pybullet.GEOM_MESH)
+                shapes.append(pb.GEOM_MESH)
                 name = str(Path(folder) / f"part{k}.obj")
                 mesh = part_mesh(part, sections, frame="part")
                 mesh.export(name)
@@ -467,7 +464,7 @@ def collision_shape(client, debris: Debris, sections: int = 48) -> int:
                     # convex pieces first (the file then holds one hull per piece; an open
                     # mesh keeps its hull)
                     with quiet_stdout():
-                        pybullet.vhacd(name, name, str(Path(folder) / "vhacd.log"))
+                        pb.vhacd(name, name, str(Path(folder) / "vhacd.log"))
             for key, value in zip(kw, (half, radius, length, name), strict=True):
                 kw[key].append(value)
             frames.append((position.tolist(), orientation.tolist()))
@@ -482,12 +479,9 @@ class RigidDebris:
     debris dynamics): net impulses in, rigid motion out."""
 
     def __init__(self, debris: Debris, state: np.ndarray):
-        import pybullet
-        from pybullet_utils.bullet_client import BulletClient
-
-        self.pybullet = pybullet
+        self.pb = pybullet()
         self.debris = debris
-        self.client = BulletClient(connection_mode=pybullet.DIRECT)
+        self.client = bullet_client()
         self.client.setGravity(0.0, 0.0, 0.0)
         self.body = create_body(self.client, debris, body_origin(state, debris), state[3:7],
                                 state[7:10], state[10:13])
@@ -502,7 +496,7 @@ class RigidDebris:
             c.setPhysicsEngineParameter(fixedTimeStep=interval, numSubSteps=0)
             self._step = interval
         com, _ = c.getBasePositionAndOrientation(self.body)
-        frame = self.pybullet.WORLD_FRAME
+        frame = self.pb.WORLD_FRAME
         c.applyExternalForce(self.body, -1, (impulse[:3] / interval).tolist(), com, frame)
         c.applyExternalTorque(self.body, -1, (impulse[3:] / interval).tolist(), frame)
         c.stepSimulation()

@@ -265,7 +265,8 @@ def capture_summary(rec: Recording) -> dict:
     mechanical energy above its start plus the winches' work (:func:`energy`,
     :func:`winch_work`; a sound run has none), the outcome (:func:`capture_outcome`:
     ``outcome``, ``outcome_time_s`` when decided and ``outcome_since_s`` when its condition
-    began, -1 while undecided), the highest capture quality, and the time series."""
+    began, -1 while undecided, and ``outcome_reason``), the highest capture quality, and the
+    time series."""
     count = nodes_in_contact(rec)
     wrapped = wrap(rec)
     k = int(np.argmax(wrapped))
@@ -282,7 +283,7 @@ def capture_summary(rec: Recording) -> dict:
         "spin": spin(rec),
         "max_energy_gain_J": float(np.max(total - total[0] - winch_work(rec))),
         "outcome": judged.outcome, "outcome_time_s": judged.time,
-        "outcome_since_s": judged.since,
+        "outcome_since_s": judged.since, "outcome_reason": judged.reason,
         "max_capture_quality": float(scores[best, 2]),
         "max_capture_quality_time_s": float(rec.time[best]),
         "nodes_in_contact": count.astype(int).tolist(),

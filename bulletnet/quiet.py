@@ -1,4 +1,8 @@
-"""Silencing C libraries that print (PyBullet's build time and argv, its V-HACD progress)."""
+"""Silencing C libraries that print (PyBullet's build time and argv, its V-HACD progress).
+
+PyBullet prints ``pybullet build time: ...`` on stderr when imported and ``argv[0]=`` on
+stdout at every connection: :func:`pybullet` and :func:`bullet_client` are the one way
+bulletnet imports and connects it, with both silenced."""
 
 from __future__ import annotations
 
@@ -23,3 +27,23 @@ def quiet_stdout():
         os.dup2(saved[1], 2)
         for fd in (*saved, devnull):
             os.close(fd)
+
+
+def pybullet():
+    """The ``pybullet`` module, imported without its build-time banner."""
+    import importlib
+
+    if "pybullet" not in sys.modules:
+        with quiet_stdout():
+            importlib.import_module("pybullet")
+    return sys.modules["pybullet"]
+
+
+def bullet_client():
+    """A new PyBullet world of its own (a ``BulletClient`` in DIRECT mode), connected without
+    PyBullet's ``argv[0]=`` line."""
+    pb = pybullet()
+    from pybullet_utils.bullet_client import BulletClient
+
+    with quiet_stdout():
+        return BulletClient(connection_mode=pb.DIRECT)

@@ -55,9 +55,11 @@ Root attributes: ``scenario`` (the TOML as run, overrides applied), ``engine``,
 completed / interrupted / diverged), ``message``, ``wall_time_s`` [s], ``bulletnet_version``,
 ``format_version``, ``nodes_per_side``; with contact ``first_contact_s`` and
 ``first_self_contact_s`` [s] (to the step; -1: none); with ``[outcome]`` on, ``outcome``
-(captured, escaped, missed or undecided) and ``outcome_time_s``, when it was decided [s]
-(-1: undecided). ``/debris`` carries ``mass`` [kg],
-``inertia`` [kg m^2] (3, 3) about the centre of mass and ``center_of_mass`` [m] (body frame).
+(captured, escaped, missed or undecided), ``outcome_time_s``, when it was decided [s]
+(-1: undecided), and ``outcome_reason``, why in words
+(:data:`bulletnet.capture_score.REASONS`; recordings before it lack it). ``/debris`` carries
+``mass`` [kg], ``inertia`` [kg m^2] (3, 3) about the centre of mass and ``center_of_mass`` [m]
+(body frame).
 
 The file is written as ``NAME.part`` in SWMR mode. Frames are kept in memory and written,
 one block per dataset, after the first frame and then every ``flush_interval`` seconds of
@@ -86,8 +88,14 @@ FLUSH_INTERVAL_S = 1.0
 STATUSES = ("running", "completed", "interrupted", "diverged")
 
 
+def _reason(exc: OSError) -> str:
+    """An OS error in a few words (``No such file or directory``), without HDF5's detail."""
+    return os.strerror(exc.errno) if exc.errno else str(exc)
+
+
 class Recorder:
-    """Append frames of a run to an HDF5 file; use as a context manager or call :meth:`close`."""
+    """Append frames of a run to an HDF5 file; use as a context manager or call :meth:`close`.
+    The file's folder is created if it does not exist."""
 
     def __init__(self, path: str | os.PathLike, model: NetModel, attrs: dict,
                  oriented: bool = False, flush_interval: float = FLUSH_INTERVAL_S,
@@ -104,9 +112,15 @@ class Recorder:
         """Frames not yet written, per series."""
         n, p = model.node_count, model.thread_count
         try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RecordingError(f"{self.path}: cannot create its folder {self.path.parent}: "
+                                 f"{_reason(exc)}") from None
+        try:
             f = h5py.File(self.part_path, "w", libver="latest")
         except OSError as exc:
-            raise RecordingError(f"{self.part_path}: cannot create: {exc}") from None
+            raise RecordingError(f"{self.path}: cannot write the recording: "
+                                 f"{_reason(exc)}") from None
         self._file = f
         for key, value in attrs.items():
             f.attrs[key] = value

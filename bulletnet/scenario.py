@@ -423,8 +423,8 @@ def _build(cls, doc: Any, path: str, source: str):
     unknown = sorted(set(doc) - set(fields))
     if unknown:
         key = f"{path}.{unknown[0]}" if path else unknown[0]
-        raise ScenarioError(
-            f"{source}: unknown key '{key}' (expected one of: {', '.join(fields)})")
+        raise ScenarioError(f"{source}: unknown key '{key}'" + (
+            did_you_mean(key) or f" (expected one of: {', '.join(fields)})"))
     kwargs = {}
     for name, f in fields.items():
         if name not in doc:
@@ -514,6 +514,28 @@ def _toml_value(v: Any) -> str:
     raise TypeError(f"cannot write {v!r} as TOML")
 
 
+def _dotted(doc: dict, prefix: str = "") -> list[str]:
+    """Every table and key of a nested scene dict, dotted: ``net``, ``net.nodes_per_side``."""
+    keys = []
+    for name, value in doc.items():
+        key = f"{prefix}.{name}" if prefix else name
+        keys.append(key)
+        if isinstance(value, dict):
+            keys.extend(_dotted(value, key))
+    return keys
+
+
+def did_you_mean(key: str) -> str:
+    """`` (did you mean 'net.nodes_per_side'?)`` for a misspelt dotted scene key (or table):
+    the closest by :func:`difflib.get_close_matches`; "" if none is close."""
+    import difflib
+
+    name = split_component(key)[0]
+    match = difflib.get_close_matches(
+        name, [k for k in _dotted(to_dict(Scenario())) if k != name], n=1)
+    return f" (did you mean '{match[0]}'?)" if match else ""
+
+
 def split_component(key: str) -> tuple[str, int | None]:
     """``"debris.position[2]"`` -> ``("debris.position", 2)``; a plain key -> ``(key, None)``."""
     match = re.fullmatch(r"(.+)\[(\d+)\]", key)
@@ -529,7 +551,7 @@ def unit_of(key: str) -> str:
         fields = {x.name: x for x in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) \
             else {}
         if part not in fields or part == "source":
-            raise ScenarioError(f"unknown scene key '{key}'")
+            raise ScenarioError(f"unknown scene key '{key}'{did_you_mean(key)}")
         f = fields[part]
         cls = f.type if not isinstance(f.type, str) else globals().get(f.type)
     if dataclasses.is_dataclass(cls):
@@ -544,11 +566,11 @@ def _set_dotted(doc: dict, key: str, value: Any, source: str) -> None:
     node = doc
     for i, part in enumerate(parts[:-1]):
         if not isinstance(node.get(part), dict):
-            raise ScenarioError(
-                f"{source}: override '{key}': no table '{'.'.join(parts[:i + 1])}'")
+            raise ScenarioError(f"{source}: override '{key}': no table "
+                                f"'{'.'.join(parts[:i + 1])}'{did_you_mean(key)}")
         node = node[part]
     if parts[-1] not in node or isinstance(node[parts[-1]], dict):
-        raise ScenarioError(f"{source}: override '{key}': unknown key")
+        raise ScenarioError(f"{source}: override '{key}': unknown key{did_you_mean(key)}")
     if component is None:
         node[parts[-1]] = value
         return

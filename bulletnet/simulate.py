@@ -51,6 +51,8 @@ class RunResult:
     undecided; :class:`~bulletnet.capture_score.OutcomeMonitor`); "" otherwise."""
     outcome_time_s: float = -1.0
     """When the outcome was decided [s]; -1 if undecided or not judged."""
+    outcome_reason: str = ""
+    """Why, in words (:data:`bulletnet.capture_score.REASONS`); "" if not judged."""
 
 
 def frame_times(duration: float, record_rate: float) -> np.ndarray:
@@ -98,10 +100,12 @@ def speed_limit(s: Scenario, state: NetState) -> float:
 
 
 def _check(state: NetState, limit: float) -> str:
-    """Why ``state`` has diverged (non-finite, or a node faster than ``limit`` [m/s]), or ""."""
+    """Why ``state`` has diverged (non-finite, or a node faster than ``limit`` [m/s]), or "".
+    A diverging state's speeds may overflow (inf): that is the finding, not a warning."""
     if not np.isfinite(state.position).all() or not np.isfinite(state.velocity).all():
         return "non-finite state"
-    vmax = float(np.linalg.norm(state.velocity, axis=1).max())
+    with np.errstate(over="ignore"):
+        vmax = float(np.linalg.norm(state.velocity, axis=1).max())
     if vmax > limit:
         return f"a node moves at {vmax:.3g} m/s (limit {limit:.3g} m/s)"
     return ""
@@ -238,7 +242,8 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         outcome_attrs = {}
         if monitor is not None:
             monitor.finish(status == "completed")
-            outcome_attrs = {"outcome": monitor.outcome, "outcome_time_s": monitor.time}
+            outcome_attrs = {"outcome": monitor.outcome, "outcome_time_s": monitor.time,
+                             "outcome_reason": monitor.reason}
         if profile is not None:
             profile.stop()
             if status == "completed":
@@ -257,8 +262,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
     if error is not None:
         raise error
     return RunResult(path=path, status=status, state=state, wall_time_s=wall, stats=stats,
-                     frames=frames, outcome=monitor.outcome if monitor else "",
-                     outcome_time_s=monitor.time if monitor else -1.0)
+                     frames=frames, **outcome_attrs)  # the recording's outcome attributes
 
 
 def _version() -> str:

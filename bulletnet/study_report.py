@@ -17,7 +17,7 @@ runs anything, so it also reads a study still running or stopped half-way).
 
 Figures (``DIR/figures/``, matplotlib): ``INPUT.png`` each measure against the input (one
 panel a measure, :func:`bulletnet.sweep.plot_sweep`), ``probabilities.png`` and
-``sobol.png``.
+``sobol.png``. :func:`summary_text` gives the summary's headline numbers as a short table.
 """
 
 from __future__ import annotations
@@ -193,6 +193,30 @@ def report(out: Path, conf: float = 0.95, bins: int = 4, plots: bool = True) -> 
         if indices:
             paths.append(plot_sobol(indices, conf, out))
     return paths
+
+
+def summary_text(out: Path, leading: int = 2) -> list[str]:
+    """``OUT/summary.json`` (:func:`report`) as a short plain-text table: the runs per status,
+    each outcome's or event's overall probability with its Wilson interval, and each
+    measure's ``leading`` inputs by total Sobol' index with S1 and ST and their intervals."""
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    level = f"{100 * summary['confidence_level']:g} %"
+    status = ", ".join(f"{n} {s}" for s, n in summary["status"].items())
+    lines = [f"{summary['rows']} runs in the table: {status}"]
+    for name, p in summary["probabilities"].items():
+        lines.append(f"{name:<28} {'p':>6}  {level + ' interval':>17}  {'runs':>9}")
+        lines += [f"  {value:<26} {c['p']:>6.3f}  {c['low']:>8.3f} - {c['high']:.3f}  "
+                  f"{c['count']:>4} / {c['n']:<4}" for value, c in p["overall"].items()]
+    if summary["sobol"]:
+        lines.append(f"Sobol' indices ({level} intervals), the {leading} leading inputs by ST:")
+        width = max(len(c) for by_input in summary["sobol"].values() for c in by_input)
+        for measure, by_input in summary["sobol"].items():
+            ranked = sorted(by_input.items(), key=lambda item: -item[1]["ST"])[:leading]
+            lines += [f"  {measure:<26} {column:<{width}}  S1 {v['S1']:6.3f} ± "
+                      f"{v['S1_conf']:.3f}  ST {v['ST']:6.3f} ± {v['ST_conf']:.3f}"
+                      for column, v in ranked]
+    lines += [f"  no indices for {m}: {why}" for m, why in summary["sobol_skipped"].items()]
+    return lines
 
 
 def plot_sobol(indices: dict, conf: float, out: Path) -> Path:

@@ -31,7 +31,9 @@ from __future__ import annotations
 import contextlib
 import csv
 import itertools
+import logging
 import os
+import signal
 import tempfile
 import time
 import tomllib
@@ -392,7 +394,22 @@ def dask_client(scheduler: str | None, workers: int):
     with dask.config.set(config), LocalCluster(
             n_workers=workers, threads_per_worker=1, processes=True,
             dashboard_address=None) as cluster, Client(cluster) as client:
-        yield client
+        client.run(_quiet_worker)
+        try:
+            yield client
+        except KeyboardInterrupt:
+            # closing the cluster mid-run logs each cancelled job and each worker it has to
+            # stop: the caller says it was interrupted, in one line
+            logging.getLogger("distributed").setLevel(logging.CRITICAL)
+            raise
+
+
+def _quiet_worker() -> None:
+    """Make this local worker process ignore Ctrl-C, which reaches it too (one process group)
+    while the driver stops it, and log Dask's errors only (not its warnings about jobs
+    cancelled as the cluster closes)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.getLogger("distributed").setLevel(logging.ERROR)
 
 
 def _row_text(row: dict) -> str:

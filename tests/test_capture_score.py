@@ -158,17 +158,34 @@ def test_missed_without_contact_by_the_miss_time_or_the_end():
     frames = [(t, 0.0, 0.9, 0, True) for t in TIMES]
     monitor = judge(frames, miss_time=3.0)
     assert (monitor.outcome, monitor.time) == ("missed", 3.0)
+    assert monitor.reason == "no contact by outcome.miss_time, 3 s"
     assert (judge(frames).outcome, judge(frames).time) == ("missed", 40.0)
+    assert judge(frames).reason == "no contact by the end, the net moving away from the debris"
     interrupted = OutcomeMonitor(OutcomeRules(), geometry=None)
     interrupted.update(1.0, Score(0.0, 0.9, 0.0), 0, True)
     interrupted.finish(completed=False)  # cut short: not a miss
     assert (interrupted.outcome, interrupted.time) == ("undecided", -1.0)
+    assert interrupted.reason == "the run stopped at 1.00 s, before its end"
+
+
+def test_a_run_over_before_contact_was_possible_is_undecided_not_missed():
+    # the rules: a miss needs the net past the debris (moving away) or miss_time reached;
+    # a run shortened to 2 s ends with the net still on its way, or before miss_time
+    approaching = [(t, 0.0, 0.9, 0, False) for t in TIMES if t <= 2.0]
+    monitor = judge(approaching)
+    assert (monitor.outcome, monitor.time, monitor.reason) == (
+        "undecided", -1.0, "no contact yet: the run ended at 2.00 s with the net still "
+        "approaching the debris")
+    early = judge([(t, 0.0, 0.9, 0, True) for t in TIMES if t <= 2.0], miss_time=30.0)
+    assert (early.outcome, early.reason) == (
+        "undecided", "no contact yet: the run ended at 2.00 s, before outcome.miss_time, 30 s")
 
 
 def test_undecided_while_touching_an_open_net():
     frames = [(t, 0.98, 0.4, 10 if t >= 9 else 0, True) for t in TIMES]
     monitor = judge(frames)
     assert (monitor.outcome, monitor.time, monitor.since) == ("undecided", -1.0, -1.0)
+    assert monitor.reason == "touched, but neither captured nor escaped by the end, 40.00 s"
 
 
 RELAXED = {"outcome.enclosed_fraction": 0.01, "outcome.mouth_opening": 0.3,
@@ -198,16 +215,19 @@ def test_a_run_stops_once_decided_and_its_recording_judges_the_same(tmp_path, ca
     rec = bn.open_recording(tmp_path / "stop.h5")
     assert rec.time[-1] == result.outcome_time_s and rec.time.size < 21
     assert (rec.attrs["outcome"], rec.attrs["outcome_time_s"]) == (outcome, rec.time[-1])
+    assert rec.attrs["outcome_reason"] == result.outcome_reason != ""
     with h5py.File(tmp_path / "stop.h5") as f:
         assert f["debris/interior_samples"].shape == (SAMPLE_COUNT, 3)
         assert f["debris/interior_samples"].attrs["units"] == "m"
     _, judged = bn.metrics.capture_outcome(rec)
-    assert (judged.outcome, judged.time) == (outcome, result.outcome_time_s)
+    assert (judged.outcome, judged.time, judged.reason) == (outcome, result.outcome_time_s,
+                                                            result.outcome_reason)
     full = bn.run(small_capture(**overrides), tmp_path / "full.h5")
     assert (full.status, full.frames, full.outcome) == ("completed", 21, outcome)
     assert full.outcome_time_s == result.outcome_time_s
     assert main(["metrics", str(tmp_path / "stop.h5")]) == 0
-    assert f"outcome: {outcome}, decided at {stop_s:.2f} s" in capsys.readouterr().out
+    assert (f"outcome: {outcome}, decided at {stop_s:.2f} s ({result.outcome_reason})"
+            in capsys.readouterr().out)
 
 
 def test_a_recording_without_its_sample_is_scored_from_its_scene(tmp_path):

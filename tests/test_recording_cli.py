@@ -101,11 +101,52 @@ def test_divergence_is_typed_and_kept(tmp_path):
     assert proc.stderr.strip().count("\n") == 1 and "diverged at t" in proc.stderr
 
 
+def test_an_overflowing_speed_is_a_divergence_not_a_warning(scene):
+    # reference: float64's largest value, 1.8e308, below the square of a 1e200 m/s speed: the
+    # check finds the divergence without numpy's overflow warning (made an error here)
+    import warnings
+
+    from bulletnet.builder import build_model, initial_state
+    from bulletnet.simulate import _check
+
+    state = initial_state(scene, build_model(scene))
+    state.velocity[3] = [1e200, 0.0, 0.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert _check(state, 350.0) == "a node moves at inf m/s (limit 350 m/s)"
+
+
+def test_run_creates_the_folders_of_its_recording(tmp_path):
+    # reference: plot --out and view --html, which create their folders; a folder that
+    # cannot be created (a file in its way) is one line naming the recording, exit code 2
+    proc = cli("run", "deployment", *TINY, "--out", "no/such/folder/x.h5", "--quiet",
+               cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert bn.open_recording(tmp_path / "no/such/folder/x.h5").status == "completed"
+    (tmp_path / "afile").write_text("")
+    proc = cli("run", "deployment", *TINY, "--out", "afile/x.h5", "--quiet", cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 2  # the run's header, the error
+    assert proc.stderr.splitlines()[-1] == ("bulletnet: error: afile/x.h5: cannot create its "
+                                            "folder afile: File exists")
+
+
+def test_a_misspelt_key_in_a_scene_file_gets_the_closest_key(tmp_path):
+    # reference: difflib's closest match among the scene's keys, as for --set
+    (tmp_path / "s.toml").write_text('base = "capture"\n[net]\nnodes_per_sid = 5\n')
+    proc = cli("params", "s.toml", cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1
+    assert "unknown key 'net.nodes_per_sid' (did you mean 'net.nodes_per_side'?)" in proc.stderr
+
+
 @pytest.mark.parametrize(("args", "needle"), [
     (["run", "nosuchscene"],
      "named scenes: cantilever, capture, capture_closing, capture_envisat, deployment)"),
     (["run", "sweep_example"], "a sweep file, not a scene; run it with `bulletnet sweep"),
     (["run", "deployment", "--set", "net.colour=3"], "unknown key"),
+    (["run", "deployment", "--set", "net.nodes_per_sid=5"],
+     "unknown key (did you mean 'net.nodes_per_side'?)"),
+    (["run", "deployment", "--set", "nte.nodes_per_side=5"],
+     "no table 'nte' (did you mean 'net.nodes_per_side'?)"),
     (["run", "deployment", "--set", "net.nodes_per_side=1"], "nodes_per_side"),
     (["run", "deployment", "--set", "net.mesh_length=-0.5"], "positive"),
     (["run", "deployment", "--set", "net.mesh_length=nan"], "finite"),

@@ -26,7 +26,7 @@ from bulletnet.study import (
     read_table,
     run_study,
 )
-from bulletnet.study_report import load, report, sobol_indices, wilson
+from bulletnet.study_report import load, report, sobol_indices, summary_text, wilson
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -131,6 +131,30 @@ def test_killed_study_resumes_to_the_uninterrupted_table(tmp_path):
     assert all(kept[r["run"]] == r["wall_s"] for r in done)
 
 
+def test_interrupted_dask_study_says_so_in_one_line_and_keeps_its_rows(tmp_path):
+    # Reference: the table itself, and what a terminal's Ctrl-C does: SIGINT to the whole
+    # process group (driver, scheduler, workers). The study stops with exit code 130 and one
+    # line after its progress, without Dask's cancelled jobs or killed workers.
+    path = write(tmp_path, SLOW.format(runs=40, pause=0.3))
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "bulletnet.cli", "study", str(path),
+                             "--out", str(out), "--workers", "2"], cwd=ROOT, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    table = out / "runs.csv"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and (
+            not table.exists() or table.read_text().count("\n") < 4):
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    lines = [line for line in err.splitlines() if line and not line.startswith("study: ")]
+    assert lines[1:] == [f"bulletnet: study interrupted; {table} keeps every finished run: "
+                         "rerun the same command to resume"], err
+    assert 3 <= len(read_table(table)[1]) < 40
+
+
 def test_dead_worker_costs_one_run(tmp_path):
     # Reference: the study's plan. The function kills its worker process on the one run
     # whose x exceeds a threshold set between the two largest draws; that run is a 'failed'
@@ -171,6 +195,15 @@ def test_sobol_indices_of_ishigami_through_the_study(tmp_path):
         for key, true in (("S1", ISHIGAMI_S1[j]), ("ST", ISHIGAMI_ST[j])):
             assert abs(got[key] - true) <= got[f"{key}_conf"], (name, key, got)
         assert got["S1_conf"] + got["ST_conf"] < 0.2437, (name, got)
+    # the printed report: each measure's inputs with the largest ST first (x1, then x2),
+    # their indices as the summary holds them
+    report(tmp_path / "out", plots=False)
+    printed = [line.split() for line in summary_text(tmp_path / "out")
+               if line.startswith("  y ")]
+    assert [line[1] for line in printed] == ["x1", "x2"]
+    x1 = json.loads((tmp_path / "out" / "summary.json").read_text())["sobol"]["y"]["x1"]
+    assert printed[0][2:] == ["S1", f"{x1['S1']:.3f}", "±", f"{x1['S1_conf']:.3f}",
+                              "ST", f"{x1['ST']:.3f}", "±", f"{x1['ST_conf']:.3f}"]
 
 
 def _truncnormal_moments(mean, std, low, high):
@@ -252,6 +285,13 @@ def test_report_probabilities_and_figures(tmp_path):
     assert summary["measures"]["y"]["count"] == 64
     names = {p.name for p in paths}
     assert {"summary.json", "x.png", "probabilities.png"} <= names
+    # the CLI prints the probabilities, each with its Wilson interval and count, then the paths
+    proc = cli("study", "--report", str(tmp_path / "out"))
+    assert proc.returncode == 0, proc.stderr
+    p, low, high = wilson(hits, 64)
+    assert f"  hit {p:>29.3f}  {low:>8.3f} - {high:.3f}  {hits:>4} / 64" in proc.stdout
+    assert proc.stdout.splitlines()[0] == "64 runs in the table: 64 completed"
+    assert proc.stdout.rstrip().endswith("probabilities.png")
 
 
 def test_resume_refuses_another_study_in_the_same_folder(tmp_path):

@@ -27,7 +27,7 @@ from ..contact import CLASS_OF_KIND
 from ..debris import body_origin, collision_shape, create_body, read_state
 from ..forces.cable import reel
 from ..model import NodeKind
-from ..quiet import quiet_stdout
+from ..quiet import bullet_client, pybullet
 from ..state import NetState
 from .base import Engine
 from .bullet_materials import fit
@@ -39,12 +39,8 @@ class BulletEngine(Engine):
 
     def __init__(self, scenario, model):
         super().__init__(scenario, model)
-        with quiet_stdout():  # pybullet prints its build time and argv on import/connect
-            import pybullet
-            from pybullet_utils.bullet_client import BulletClient
-
-            self.pb = pybullet
-            self.client = BulletClient(connection_mode=pybullet.DIRECT)
+        self.pb = pybullet()
+        self.client = bullet_client()
         c = self.client
         c.setGravity(0.0, 0.0, 0.0)  # gravity is in the forces we apply (one implementation)
         c.setPhysicsEngineParameter(numSubSteps=0, deterministicOverlappingPairs=1)
