@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import time
 
 import pytest
 from conftest import small_scene
@@ -114,28 +113,34 @@ def test_profile_accounts_for_the_run_loop(tmp_path):
     assert sum(rows) == pytest.approx(result.wall_time_s, abs=5e-3)  # printed to 1 ms a row
 
 
-def test_profile_sections_are_exclusive():
-    # Reference: the wall clock around the outer call. A section that calls another is
-    # charged only its own time; the two add up to the whole call.
+def test_profile_sections_are_exclusive(monkeypatch):
+    # Reference: a clock that moves only when the work says (no racing the real clock). A
+    # section that calls another is charged only its own time; the two add up to the call;
+    # a stopped profile charges nothing more.
+    import types
+
+    import bulletnet.profiling
+
+    clock = [0.0]
+    monkeypatch.setattr(bulletnet.profiling, "time",
+                        types.SimpleNamespace(perf_counter=lambda: clock[0]))
+
     class Work:
         def outer(self):
-            time.sleep(0.02)
+            clock[0] += 0.02
             self.inner()
 
         def inner(self):
-            time.sleep(0.03)
+            clock[0] += 0.03
 
     work, profile = Work(), Profile()
     profile.wrap(work, "outer", "outer")
     profile.wrap(work, "inner", "inner")
-    start = time.perf_counter()
     work.outer()
-    total = time.perf_counter() - start
-    assert profile.seconds["inner"] >= 0.03 and profile.seconds["outer"] >= 0.02
-    assert profile.seconds["outer"] + profile.seconds["inner"] == pytest.approx(total, abs=1e-3)
+    assert profile.seconds == pytest.approx({"outer": 0.02, "inner": 0.03}, abs=1e-12)
     profile.stop()
     work.outer()
-    assert profile.seconds["outer"] + profile.seconds["inner"] == pytest.approx(total, abs=1e-3)
+    assert profile.seconds == pytest.approx({"outer": 0.02, "inner": 0.03}, abs=1e-12)
 
 
 def test_cli_profile_names_every_section(tmp_path):
