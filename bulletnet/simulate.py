@@ -16,6 +16,7 @@ import numpy as np
 
 from .builder import build_model, initial_state
 from .capture_score import OutcomeMonitor, ScoreGeometry, interior_samples, wrap_fraction
+from .compile_ahead import compile_ahead
 from .debris import body_origin
 from .engines import make_engine
 from .errors import BulletnetError, DivergenceError, ScenarioError
@@ -170,6 +171,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
     model = preflight(scenario, out, force)
     state = initial_state(scenario, model)
     engine = make_engine(scenario, model)
+    compile_ahead(scenario, engine, state)  # a first run with contact: on both cores
     times = frame_times(scenario.scene.duration, scenario.simulation.record_rate)
     samples = None if engine.debris is None else interior_samples(engine.debris)
     monitor = (OutcomeMonitor(scenario.outcome, ScoreGeometry.of(

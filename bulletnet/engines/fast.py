@@ -54,6 +54,41 @@ class FastEngine(Engine):
         a = self.contact.arrays
         return a if a.flags.any() else None
 
+    def kernel_groups(self, state: NetState) -> dict[str, list[tuple]]:
+        """The compiled kernels the loop of this engine calls, by group, each as (dispatcher,
+        the arguments the loop passes it): ``step`` (the threads' step on this path, bending)
+        and, with contact, ``contact`` (the contact stage). For compiling groups apart, on
+        both cores (:mod:`bulletnet.compile_ahead`); empty for a free net, whose first run
+        compiles little."""
+        if self.free:
+            return {}
+        quat, omega = self.rotations(state)
+        pos, vel, dv = state.position, state.velocity, self.step_work.dv
+        if self.grid is not None:
+            pos, vel = self.views.position, self.views.velocity
+            if self.bending:
+                quat, omega = self.views.quat, self.views.omega
+            step = ([(grid_kernels.implicit_step, (self.grid, self.views, self.dt,
+                                                   self.cg_tolerance, self.work.cg_iterations))]
+                    if self.implicit else
+                    [(grid_kernels.symplectic_step, (self.grid, self.views, self.dt, 0.0,
+                                                     self.contact_arrays is not None))])
+            if self.bending:
+                step.append((grid_kernels.bending, (self.grid, self.views, self.work.torque)))
+        else:
+            step = [(integrators.increment(self.implicit),
+                     (0.0, pos, vel, quat, omega, self.arrays, self.step_work, self.gravity,
+                      self.external, self.dt, self.cg_tolerance))]
+        groups = {"step": step}
+        contact_arrays = self.contact_arrays
+        if contact_arrays is not None:
+            a = self.arrays
+            groups["contact"] = [
+                (contact.ensure_pairs, (pos, a.radius, contact_arrays)),
+                (contact.contact_stage, (pos, vel, dv, a.mass, a.radius, a.fixed,
+                                         contact_arrays, self.dt, 0.0))]
+        return groups
+
     def advance(self, state: NetState, t_end: float) -> None:
         interval = t_end - state.time
         if interval <= 0:

@@ -1,0 +1,94 @@
+"""A first run's compilation on both cores.
+
+The first run of a scene with contact compiles two large groups of kernels that do not
+depend on each other: the threads' step (the implicit solver, bending) and the contact stage
+(the Verlet list, the debris' signed distance, the contact laws). numba compiles in the
+process that calls, holding the interpreter, so one process compiles them one after the
+other. :func:`compile_ahead` has a second process compile the contact group into numba's
+cache (the same folder: :mod:`bulletnet.kernel_cache`) while this one compiles the step
+group; the compiled loop then loads both from the cache. If the cache already holds the
+contact group, or the second process fails, nothing changes but the time: each process
+compiles exactly what a run would (the same kernels for the same argument types), so the
+results are the same.
+
+    python -m bulletnet.compile_ahead SCENE.toml   # the second process: the contact group
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numba as nb
+
+HELPER_TIMEOUT_S = 600.0
+"""Longest wait for the second process [s]; past it this process compiles on its own."""
+
+
+def signature(args: tuple) -> tuple:
+    """numba's argument types of a call with ``args``, as a dispatcher types a call."""
+    return tuple(nb.typeof(a) for a in args)
+
+
+def is_cached(dispatcher, args: tuple) -> bool:
+    """Whether the dispatcher's compiled code for ``args`` is loaded or in numba's cache."""
+    sig = signature(args)
+    if sig in dispatcher.overloads:
+        return True
+    # what Dispatcher.compile tries first (numba has no public call for it)
+    return dispatcher._cache.load_overload(sig, dispatcher.targetctx) is not None
+
+
+def compile_group(calls: list[tuple]) -> None:
+    """Compile (or load) each (dispatcher, args) of a group for its arguments' types."""
+    for dispatcher, args in calls:
+        dispatcher.compile(signature(args))
+
+
+def compile_ahead(scenario, engine, state) -> None:
+    """Compile the engine's kernel groups for ``state`` on two cores when numba's cache lacks
+    the contact group (see the module doc); otherwise do nothing (the run compiles or loads
+    as usual)."""
+    groups = getattr(engine, "kernel_groups", lambda _: {})(state)
+    if "contact" not in groups or all(is_cached(d, a) for d, a in groups["contact"]):
+        return
+    from .scenario import to_toml
+
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = Path(tmp) / "scene.toml"
+        scene.write_text(to_toml(scenario), encoding="utf-8")
+        helper = subprocess.Popen([sys.executable, "-m", "bulletnet.compile_ahead", str(scene)],
+                                  stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL)
+        try:
+            compile_group(groups["step"])
+            helper.wait(timeout=HELPER_TIMEOUT_S)
+        except BaseException:
+            helper.kill()
+            helper.wait()
+            if sys.exc_info()[0] is subprocess.TimeoutExpired:
+                return
+            raise
+
+
+def main(argv: list[str]) -> int:
+    """The second process: build the scene's engine and compile its contact group."""
+    from .builder import build_model, initial_state
+    from .engines import make_engine
+    from .scenario import load
+
+    scenario = load(argv[0])
+    model = build_model(scenario)
+    state = initial_state(scenario, model)
+    engine = make_engine(scenario, model)
+    try:
+        compile_group(engine.kernel_groups(state).get("contact", []))
+    finally:
+        engine.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

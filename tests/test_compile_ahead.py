@@ -1,0 +1,41 @@
+"""Compiling a first run's kernel groups apart (bulletnet.compile_ahead): the groups name
+exactly the specializations the compiled loop uses, so what a second process compiles into
+numba's cache is what the run loads."""
+
+from __future__ import annotations
+
+import pytest
+from conftest import small_capture
+
+import bulletnet as bn
+from bulletnet.compile_ahead import is_cached, signature
+from bulletnet.engines import make_engine
+
+
+@pytest.mark.parametrize("overrides", [
+    {},                                                          # grid, implicit Euler
+    {"bending.enabled": True},                                   # with bending
+    {"simulation.kernels": "pairs"},                             # the pair list
+    {"simulation.integrator": "symplectic_euler", "simulation.dt": 2e-6},
+])
+def test_kernel_groups_are_the_loops_own_specializations(tmp_path, overrides):
+    # Reference: numba's record of the signatures each dispatcher compiled (or loaded) for the
+    # run's loop: every (kernel, arguments) of the groups is one of them, for the arguments'
+    # types as the loop passes them.
+    scene = small_capture(**{"scene.duration": 0.1, **overrides})
+    bn.run(scene, tmp_path / "run.h5")
+    model = bn.build_model(scene)
+    engine = make_engine(scene, model)
+    groups = engine.kernel_groups(bn.initial_state(scene, model))
+    assert set(groups) == {"step", "contact"}
+    for calls in groups.values():
+        for dispatcher, args in calls:
+            assert signature(args) in dispatcher.overloads, dispatcher.py_func.__name__
+            assert is_cached(dispatcher, args)
+
+
+def test_a_free_net_has_no_groups():
+    # Reference: the definition: a free net's first run compiles only grid.free_steps.
+    scene = bn.load_scenario("deployment")
+    model = bn.build_model(scene)
+    assert make_engine(scene, model).kernel_groups(bn.initial_state(scene, model)) == {}
