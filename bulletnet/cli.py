@@ -536,7 +536,7 @@ def cmd_warmup(args) -> int:
 def cmd_params(args) -> int:
     from .builder import build_model, scene_debris
     from .hertz import contact_table
-    from .model import NodeKind
+    from .model import NodeKind, corner_threads
 
     scene = _scene(args)
     model = build_model(scene)
@@ -548,7 +548,7 @@ def cmd_params(args) -> int:
                                         "mass_kg": float(model.mass[nodes[0]]),
                                         "radius_m": float(model.radius[nodes[0]])}
     threads = {}
-    for label, index in (("inner", 0), ("corner", model.thread_count - 1)):
+    for label, index in (("inner", 0), ("corner", corner_threads(model.pairs, model.kind)[-1])):
         threads[label] = {
             "rest_length_m": float(model.rest_length[index]),
             "radius_m": float(model.thread_radius[index]),

@@ -26,6 +26,14 @@ class NodeKind(IntEnum):
     CHASER = 5
 
 
+def corner_threads(pairs: np.ndarray, kind: np.ndarray) -> np.ndarray:
+    """Indices of the corner threads (Fig. 1's threads from a net corner to its corner mass)
+    among threads ``pairs`` (P, 2) of nodes of ``kind`` (N,) [-], in thread order: found by
+    their ends' kinds, not by position (a tether's threads follow them)."""
+    ends = kind[pairs]
+    return np.flatnonzero((ends == NodeKind.CORNER_MASS).any(axis=1))
+
+
 @dataclass(frozen=True)
 class NetModel:
     nodes_per_side: int

@@ -20,6 +20,7 @@ import numpy as np
 
 from . import metrics
 from .errors import BulletnetError
+from .model import corner_threads
 from .recording import Recording
 
 
@@ -96,7 +97,7 @@ def plot_recordings(a: Recording, b: Recording | None, out_dir: str | Path,
             ax.grid(alpha=0.3)
         save(fig, "rmse.png")
 
-    corner = a.pairs.shape[0] - 4  # the first corner thread
+    corner = corner_threads(a.pairs, a.kind)[0]  # the first corner thread
     fig, ax = plt.subplots(figsize=(6.5, 4))
     for rec, style in zip(recs, styles, strict=False):
         tension = np.where(rec.tension[:, corner] > 0, rec.tension[:, corner], np.nan)

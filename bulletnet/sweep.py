@@ -63,7 +63,9 @@ def deployed_90(rec: Recording) -> float | None:
 
 def max_corner_tension(rec: Recording) -> float:
     """Largest tension in any corner thread over the recorded frames [N]."""
-    return float(rec.tension[:, -4:].max())
+    from .model import corner_threads
+
+    return float(rec.tension[:, corner_threads(rec.pairs, rec.kind)].max())
 
 
 def max_wrap(rec: Recording) -> float:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 
+import numpy as np
 import pytest
 from test_recording_cli import cli
 
@@ -49,7 +50,7 @@ def test_dask_sweep_matches_the_runs_one_by_one(sweep_file, tmp_path):
                        force=True)
         rec = bn.open_recording(alone.path)
         assert row["final_mouth_area_m2"] == bn.metrics.mouth_area(rec)[-1]
-        assert row["max_corner_tension_N"] == rec.tension[:, -4:].max()
+        assert row["max_corner_tension_N"] == rec.tension[:, -4:].max()  # no tether: the last 4
         assert row["steps"] == alone.stats["steps"]
     table = write_table(rows, tmp_path / "dask")[0]
     with table.open() as f:
@@ -91,3 +92,25 @@ def test_cli_bad_sweep_is_one_line(tmp_path):
 def test_example_sweep_is_sixteen_valid_variants():
     spec = load_sweep(bn.scenario.SCENARIO_DIR / "sweep_example.toml")
     assert len(spec.variants) == 16 and len(set(map(str, spec.variants))) == 16
+
+
+def test_corner_tension_is_the_corner_threads_with_a_tether_on():
+    # Reference: Fig. 1's topology: the four corner threads join a net corner to its corner
+    # mass; the tether's threads, appended after them, join the net's centre, tether nodes
+    # and the chaser. The measure takes the corner threads by their ends' kinds, not the
+    # last four threads (which, with a tether, are the tether's).
+    from types import SimpleNamespace
+
+    from bulletnet.model import NodeKind, corner_threads
+    from bulletnet.sweep import max_corner_tension
+
+    model = bn.build_model(bn.load_scenario("capture_closing"))
+    corner = corner_threads(model.pairs, model.kind)
+    ends = np.sort(model.kind[model.pairs[corner]], axis=1)
+    assert corner.size == 4 and (ends == [NodeKind.CORNER, NodeKind.CORNER_MASS]).all()
+    tether = np.flatnonzero((model.kind[model.pairs] == NodeKind.TETHER).any(axis=1))
+    assert tether.size and tether.min() > corner.max()
+    tension = np.zeros((2, model.thread_count))
+    tension[1, corner[2]], tension[0, tether[-1]] = 3.0, 50.0  # the tether pulls harder
+    rec = SimpleNamespace(tension=tension, pairs=model.pairs, kind=model.kind)
+    assert max_corner_tension(rec) == 3.0
