@@ -1,17 +1,17 @@
 """A first run's compilation on both cores.
 
-The first run of a scene with contact compiles two large groups of kernels that do not
-depend on each other: the threads' step (the implicit solver, bending) and the contact stage
-(the Verlet list, the debris' signed distance, the contact laws). numba compiles in the
-process that calls, holding the interpreter, so one process compiles them one after the
-other. :func:`compile_ahead` has a second process compile the contact group into numba's
-cache (the same folder: :mod:`bulletnet.kernel_cache`) while this one compiles the step
-group; the compiled loop then loads both from the cache. If the cache already holds the
-contact group, or the second process fails, nothing changes but the time: each process
-compiles exactly what a run would (the same kernels for the same argument types), so the
-results are the same.
+The first run of a scene compiles groups of kernels that do not depend on each other: the
+threads' step (the implicit solver), the bending springs, the contact stage (the Verlet
+list, the debris' signed distance, the contact laws). numba compiles in the process that
+calls, holding the interpreter, so one process compiles them one after the other.
+:func:`compile_ahead` has a second process compile the groups other than the step that
+numba's cache lacks (into the same folder: :mod:`bulletnet.kernel_cache`) while this one
+compiles the step; the compiled loop then loads them all. If the cache holds those groups,
+or the second process fails, nothing changes but the time: each process compiles exactly
+what a run would (the same kernels for the same argument types), so the results are the
+same.
 
-    python -m bulletnet.compile_ahead SCENE.toml   # the second process: the contact group
+    python -m bulletnet.compile_ahead SCENE.toml GROUP ...   # the second process
 """
 
 from __future__ import annotations
@@ -49,18 +49,20 @@ def compile_group(calls: list[tuple]) -> None:
 
 def compile_ahead(scenario, engine, state) -> None:
     """Compile the engine's kernel groups for ``state`` on two cores when numba's cache lacks
-    the contact group (see the module doc); otherwise do nothing (the run compiles or loads
-    as usual)."""
+    any group besides the step (see the module doc); otherwise do nothing (the run compiles
+    or loads as usual)."""
     groups = getattr(engine, "kernel_groups", lambda _: {})(state)
-    if "contact" not in groups or all(is_cached(d, a) for d, a in groups["contact"]):
+    missing = [name for name, calls in groups.items() if name != "step"
+               and not all(is_cached(d, a) for d, a in calls)]
+    if not missing:
         return
     from .scenario import to_toml
 
     with tempfile.TemporaryDirectory() as tmp:
         scene = Path(tmp) / "scene.toml"
         scene.write_text(to_toml(scenario), encoding="utf-8")
-        helper = subprocess.Popen([sys.executable, "-m", "bulletnet.compile_ahead", str(scene)],
-                                  stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+        helper = subprocess.Popen([sys.executable, "-m", "bulletnet.compile_ahead", str(scene),
+                                   *missing], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                   stderr=subprocess.DEVNULL)
         try:
             compile_group(groups["step"])
@@ -74,7 +76,8 @@ def compile_ahead(scenario, engine, state) -> None:
 
 
 def main(argv: list[str]) -> int:
-    """The second process: build the scene's engine and compile its contact group."""
+    """The second process: build the scene's engine (``argv[0]``: its TOML) and compile the
+    named kernel groups (``argv[1:]``)."""
     from .builder import build_model, initial_state
     from .engines import make_engine
     from .scenario import load
@@ -84,7 +87,9 @@ def main(argv: list[str]) -> int:
     state = initial_state(scenario, model)
     engine = make_engine(scenario, model)
     try:
-        compile_group(engine.kernel_groups(state).get("contact", []))
+        groups = engine.kernel_groups(state)
+        for name in argv[1:]:
+            compile_group(groups.get(name, []))
     finally:
         engine.close()
     return 0

@@ -27,7 +27,8 @@ def test_kernel_groups_are_the_loops_own_specializations(tmp_path, overrides):
     model = bn.build_model(scene)
     engine = make_engine(scene, model)
     groups = engine.kernel_groups(bn.initial_state(scene, model))
-    assert set(groups) == {"step", "contact"}
+    bending = overrides.get("bending.enabled", False) and "simulation.kernels" not in overrides
+    assert set(groups) == {"step", "contact"} | ({"bending"} if bending else set())
     for calls in groups.values():
         for dispatcher, args in calls:
             assert signature(args) in dispatcher.overloads, dispatcher.py_func.__name__

@@ -56,8 +56,9 @@ class FastEngine(Engine):
 
     def kernel_groups(self, state: NetState) -> dict[str, list[tuple]]:
         """The compiled kernels the loop of this engine calls, by group, each as (dispatcher,
-        the arguments the loop passes it): ``step`` (the threads' step on this path, bending)
-        and, with contact, ``contact`` (the contact stage). For compiling groups apart, on
+        the arguments the loop passes it): ``step`` (the threads' step on this path), with
+        bending on the grid ``bending``, with contact ``contact`` (the contact stage). For
+        compiling groups apart, on
         both cores (:mod:`bulletnet.compile_ahead`); empty for a free net, whose first run
         compiles little."""
         if self.free:
@@ -73,13 +74,14 @@ class FastEngine(Engine):
                     if self.implicit else
                     [(grid_kernels.symplectic_step, (self.grid, self.views, self.dt, 0.0,
                                                      self.contact_arrays is not None))])
-            if self.bending:
-                step.append((grid_kernels.bending, (self.grid, self.views, self.work.torque)))
         else:
             step = [(integrators.increment(self.implicit),
                      (0.0, pos, vel, quat, omega, self.arrays, self.step_work, self.gravity,
                       self.external, self.dt, self.cg_tolerance))]
         groups = {"step": step}
+        if self.grid is not None and self.bending:
+            groups["bending"] = [(grid_kernels.bending, (self.grid, self.views,
+                                                         self.work.torque))]
         contact_arrays = self.contact_arrays
         if contact_arrays is not None:
             a = self.arrays
