@@ -10,7 +10,9 @@ Each repeat empties a numba cache folder and runs, as separate processes, in ord
 
 It reports each command's whole wall time (imports, model, compilation, run, recording) and
 the compile time the command itself prints, medians over the repeats, to
-``OUT/first_run.json``. Run it on an otherwise idle machine:
+``OUT/first_run.json``, with the frozen yardstick (``yardstick.py``) timed at the start of
+each repeat, so that the warm run can be read as a ratio to it. Run it on an otherwise
+idle machine:
 
     python benchmarks/first_run.py benchmarks/results --repeats 3
 """
@@ -28,6 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import yardstick
 from common import output_dir, parser
 
 STEPS = {
@@ -60,7 +63,10 @@ def main() -> int:
     args = parser(__doc__.split("\n\n")[0]).parse_args()
     out = output_dir(args)
     runs: dict[str, list[dict]] = {label: [] for label in STEPS}
+    yard = []
     for repeat in range(args.repeats):
+        yard.append(yardstick.run()[0])
+        print(f"repeat {repeat + 1}: yardstick {yard[-1]:.2f} s", flush=True)
         with tempfile.TemporaryDirectory() as tmp:
             cache = Path(tmp) / "numba"
             for label, command in STEPS.items():
@@ -75,6 +81,8 @@ def main() -> int:
               "date": time.strftime("%Y-%m-%d"), "machine": {
                   "cpus": os.cpu_count(), "processor": platform.processor(),
                   "python": platform.python_version()},
+              "yardstick": {"sha256": yardstick.file_hash(), "walls_s": yard,
+                            "median_s": statistics.median(yard)},
               "steps": summary}
     path = out / "first_run.json"
     path.write_text(json.dumps(result, indent=1) + "\n")
