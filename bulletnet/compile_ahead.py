@@ -51,7 +51,7 @@ def compile_ahead(scenario, engine, state) -> None:
     """Compile the engine's kernel groups for ``state`` on two cores when numba's cache lacks
     any group besides the step (see the module doc); otherwise do nothing (the run compiles
     or loads as usual)."""
-    groups = getattr(engine, "kernel_groups", lambda _: {})(state)
+    groups = engine.kernel_groups(state)
     missing = [name for name, calls in groups.items() if name != "step"
                and not all(is_cached(d, a) for d, a in calls)]
     if not missing:
@@ -67,12 +67,12 @@ def compile_ahead(scenario, engine, state) -> None:
         try:
             compile_group(groups["step"])
             helper.wait(timeout=HELPER_TIMEOUT_S)
-        except BaseException:
-            helper.kill()
-            helper.wait()
-            if sys.exc_info()[0] is subprocess.TimeoutExpired:
-                return
-            raise
+        except subprocess.TimeoutExpired:
+            pass  # this process compiles what is left, as the run goes
+        finally:
+            if helper.poll() is None:  # timed out, or this process was interrupted
+                helper.kill()
+                helper.wait()
 
 
 def main(argv: list[str]) -> int:

@@ -165,6 +165,11 @@ class Engine(ABC):
             return state.orientation, state.angular_velocity
         return None, None
 
+    def kernel_groups(self, state: NetState) -> dict[str, list[tuple]]:
+        """The compiled kernels this engine's steps call, by group, as (dispatcher, arguments)
+        (:mod:`bulletnet.compile_ahead`); none unless an engine says (the fast engine does)."""
+        return {}
+
     @abstractmethod
     def advance(self, state: NetState, t_end: float) -> None:
         """Integrate ``state`` in place from ``state.time`` to ``t_end`` [s]."""

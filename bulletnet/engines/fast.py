@@ -54,21 +54,25 @@ class FastEngine(Engine):
         a = self.contact.arrays
         return a if a.flags.any() else None
 
+    def _loop_arrays(self, state: NetState) -> tuple:
+        """(pos, vel, quat, omega) as the compiled loop steps them: the grid's views of its
+        rows (which :func:`bulletnet.grid.load` fills), or the state's own arrays on the pair
+        list; (quat, omega) None without bending."""
+        if self.grid is None:
+            return (state.position, state.velocity, *self.rotations(state))
+        v = self.views
+        return (v.position, v.velocity, *((v.quat, v.omega) if self.bending else (None, None)))
+
     def kernel_groups(self, state: NetState) -> dict[str, list[tuple]]:
         """The compiled kernels the loop of this engine calls, by group, each as (dispatcher,
         the arguments the loop passes it): ``step`` (the threads' step on this path), with
         bending on the grid ``bending``, with contact ``contact`` (the contact stage). For
-        compiling groups apart, on
-        both cores (:mod:`bulletnet.compile_ahead`); empty for a free net, whose first run
-        compiles little."""
+        compiling groups apart, on both cores (:mod:`bulletnet.compile_ahead`); empty for a
+        free net, whose first run compiles little."""
         if self.free:
             return {}
-        quat, omega = self.rotations(state)
-        pos, vel, dv = state.position, state.velocity, self.step_work.dv
+        pos, vel, quat, omega = self._loop_arrays(state)
         if self.grid is not None:
-            pos, vel = self.views.position, self.views.velocity
-            if self.bending:
-                quat, omega = self.views.quat, self.views.omega
             step = ([(grid_kernels.implicit_step, (self.grid, self.views, self.dt,
                                                    self.cg_tolerance, self.work.cg_iterations))]
                     if self.implicit else
@@ -87,8 +91,8 @@ class FastEngine(Engine):
             a = self.arrays
             groups["contact"] = [
                 (contact.ensure_pairs, (pos, a.radius, contact_arrays)),
-                (contact.contact_stage, (pos, vel, dv, a.mass, a.radius, a.fixed,
-                                         contact_arrays, self.dt, 0.0))]
+                (contact.contact_stage, (pos, vel, self.step_work.dv, a.mass, a.radius,
+                                         a.fixed, contact_arrays, self.dt, 0.0))]
         return groups
 
     def advance(self, state: NetState, t_end: float) -> None:
@@ -101,17 +105,12 @@ class FastEngine(Engine):
         chunk = max(1, round(self.scenario.debris.step / dt)) if has_debris else steps
         if has_debris and self.rigid is None:
             self.rigid = RigidDebris(self.debris, state.debris)
-        quat, omega = self.rotations(state)
         a = self.contact.arrays
         on_grid = self.grid is not None
         if on_grid:
             base = self.model.mass[:, None] * self.gravity + self.model.load + self.external
             grid_kernels.load(self.grid, state, base)
-            pos, vel = self.views.position, self.views.velocity
-            if self.bending:
-                quat, omega = self.views.quat, self.views.omega
-        else:
-            pos, vel = state.position, state.velocity
+        pos, vel, quat, omega = self._loop_arrays(state)
         free = self.free
         done = 0
         while done < steps:
