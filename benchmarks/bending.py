@@ -20,7 +20,7 @@ import numpy as np
 from common import ERROR_KEYS, errors, output_dir, parser, timed
 
 import bulletnet as bn
-from bulletnet.plots import plot_recordings
+from bulletnet.analysis.plots import plot_recordings
 
 
 def main() -> None:

@@ -24,7 +24,7 @@ import numpy as np
 from common import output_dir, parser
 
 import bulletnet as bn
-from bulletnet.plots import plot_recordings
+from bulletnet.analysis.plots import plot_recordings
 
 FIG11_TIMES = [9.0, 14.0, 27.0, 44.0, 82.0]
 HEAD_ON = {"debris.position": [0.0, 0.0, 5.0], "debris.velocity": [0.0, 0.0, -2.0],

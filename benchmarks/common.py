@@ -1,5 +1,5 @@
-"""What the benchmarks share: timing runs (:func:`bulletnet.bench.timed`) and the Eq. 14 error
-summary."""
+"""What the benchmarks share: timing runs (:func:`bulletnet.studies.bench.timed`) and the Eq. 14
+error summary."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 import bulletnet as bn
-from bulletnet.bench import ERROR_KEYS, rmse_measure, timed
+from bulletnet.studies.bench import ERROR_KEYS, rmse_measure, timed
 
 __all__ = ["ERROR_KEYS", "errors", "output_dir", "parser", "timed"]
 

@@ -49,7 +49,7 @@ def timed_command(args: list[str], cwd: Path, cache: Path) -> tuple[float, float
     ARGS`` run as a process with the numba cache in ``cache``."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
     start = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "bulletnet.cli", *args, "--force",
+    proc = subprocess.run([sys.executable, "-m", "bulletnet.cli.main", *args, "--force",
                            "--out", "run.h5"], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=3600)
     wall = time.perf_counter() - start

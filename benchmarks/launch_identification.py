@@ -61,9 +61,9 @@ from common import output_dir, parser
 from scipy.optimize import brentq, minimize_scalar
 
 import bulletnet as bn
-from bulletnet.plots import _pyplot
-from bulletnet.sweep import run_variant
-from bulletnet.topology import net_corners
+from bulletnet.analysis.plots import _pyplot
+from bulletnet.model.topology import net_corners
+from bulletnet.studies.sweep import run_variant
 
 RUN_S = 4.0
 """Length of each deployment run [s]: past the paper's 3 s, so that a 90 % time up to the
@@ -248,8 +248,8 @@ def cached(path: Path, compute) -> dict:
 
 
 def run(path: Path, scene: str, overrides: dict) -> tuple[bn.Recording, float]:
-    """Run ``scene`` with ``overrides`` (:func:`bulletnet.sweep.run_variant`): its recording,
-    loaded, and the wall time [s]; the file is removed."""
+    """Run ``scene`` with ``overrides`` (:func:`bulletnet.studies.sweep.run_variant`): its
+    recording, loaded, and the wall time [s]; the file is removed."""
     row = run_variant(0, scene, overrides, str(path), measures={})
     if row["status"] != "completed":
         raise RuntimeError(f"{path.name}: {row['status']} {row['message']}")
@@ -384,7 +384,8 @@ def comparison(measures: dict) -> dict:
 
 
 def capture(runs: Path, elevation_deg: float, bending: bool) -> dict:
-    """The 120 s capture at this elevation [deg]: :func:`bulletnet.metrics.capture_summary`'s
+    """The 120 s capture at this elevation [deg]:
+    :func:`bulletnet.analysis.metrics.capture_summary`'s
     scalars; the nodes touching first, as [row, column] of the net [-]; and at Fig. 11's
     times the mouth area over L^2 [-], the mouth's two diagonals' mean over the open net's,
     L sqrt(2) [-], and their ratio (1: symmetric) [-], the wrap [-], the nodes in contact [-],

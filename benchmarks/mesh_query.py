@@ -1,5 +1,5 @@
 """Mesh contact query: the triangle hierarchy with exact closest points (what bulletnet uses,
-:func:`bulletnet.forces.contact.mesh_distance`) against a precomputed distance field (signed
+:func:`bulletnet.kernels.contact.mesh_distance`) against a precomputed distance field (signed
 distances on a regular grid, trilinear interpolation, the interpolant's gradient as normal).
 
 For the CSM mesh (assets/apollo_csm_mesh.toml, 960 triangles) and a finer sphere (20480
@@ -22,9 +22,9 @@ import numpy as np
 from common import output_dir, parser
 
 import bulletnet as bn
-from bulletnet.contact import debris_geometry
-from bulletnet.debris import Part, make_debris
-from bulletnet.forces.contact import debris_distance
+from bulletnet.kernels.contact import debris_distance
+from bulletnet.model.debris import Part, make_debris
+from bulletnet.solver.contact_stage import debris_geometry
 
 BAND = 0.1
 """Half width of a narrow band worth storing [m]."""

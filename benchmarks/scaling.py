@@ -20,7 +20,7 @@ import numpy as np
 from common import output_dir, parser
 
 import bulletnet as bn
-from bulletnet.plots import _pyplot
+from bulletnet.analysis.plots import _pyplot
 
 SIZES = (11, 21, 41, 81)
 

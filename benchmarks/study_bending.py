@@ -25,10 +25,10 @@ from pathlib import Path
 
 from common import output_dir, parser
 
-from bulletnet.scenario import SCENARIO_DIR
-from bulletnet.study import load_study, read_table, run_study
-from bulletnet.study_report import report
-from bulletnet.sweep import dask_client, warm_up
+from bulletnet.model.scenario import SCENARIO_DIR
+from bulletnet.studies.report import report
+from bulletnet.studies.study import load_study, read_table, run_study
+from bulletnet.studies.sweep import dask_client, warm_up
 
 
 def timed_study(study, out: Path, **kwargs) -> dict:

@@ -16,8 +16,8 @@ import time
 
 from common import output_dir, parser
 
-from bulletnet.scenario import SCENARIO_DIR
-from bulletnet.sweep import dask_client, load_sweep, run_sweep
+from bulletnet.model.scenario import SCENARIO_DIR
+from bulletnet.studies.sweep import dask_client, load_sweep, run_sweep
 
 
 def one_pair(spec, out, workers: int) -> dict:

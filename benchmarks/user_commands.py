@@ -43,7 +43,7 @@ def readme_run_lines() -> list[list[str]]:
 def run_command(args: list[str], folder: Path) -> float:
     """Wall time [s] of ``bulletnet ARGS --force`` as a process in ``folder``."""
     start = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "bulletnet.cli", *args, "--force"],
+    proc = subprocess.run([sys.executable, "-m", "bulletnet.cli.main", *args, "--force"],
                           cwd=folder, capture_output=True, text=True, timeout=7200)
     wall = time.perf_counter() - start
     if proc.returncode != 0:
@@ -71,7 +71,7 @@ def main() -> int:
         folder = Path(tmp)
         (folder / "assets").symlink_to(ROOT / "assets")
         shutil.copytree(ROOT / "scenarios", folder / "scenarios")
-        subprocess.run([sys.executable, "-m", "bulletnet.cli", "scene", "capture"], check=True,
+        subprocess.run([sys.executable, "-m", "bulletnet.cli.main", "scene", "capture"], check=True,
                        stdout=(folder / "mine.toml").open("w"))
         for line in lines:  # compile every line's kernels first
             run_command([*line, "--duration", "0.01", "--quiet"], folder)

@@ -7,28 +7,59 @@ The Python API mirrors the CLI::
     result = bn.run(scene, "deployment.h5")
     rec = bn.open_recording("deployment.h5")
     area = bn.metrics.mouth_area(rec)          # [m^2], shape (T,)
+
+The package is layered (docs/development.md): ``common`` < ``kernels`` < ``model`` <
+``solver``, ``recording`` < ``engines`` < ``analysis`` < ``sim`` < ``studies``, ``viewer`` <
+``cli``. The names below are loaded on first use, so ``import bulletnet`` (and the command
+line's start) imports neither numba nor PyBullet.
 """
 
 from __future__ import annotations
 
+import importlib
+
+from .common import kernel_cache  # noqa: F401 (first: it points numba's cache before any kernel)
+
 __version__ = "0.1.0"
 
-from . import kernel_cache, metrics  # noqa: F401 (kernel_cache first: it points numba's cache)
-from .builder import build_model, initial_state
-from .debris import Debris, Part, load_debris, make_debris
-from .errors import BulletnetError, DivergenceError, RecordingError, ScenarioError
-from .hertz import contact_table
-from .model import NetModel, NodeKind
-from .recording import Recording, open_recording
-from .scenario import Scenario
-from .scenario import load as load_scenario
-from .scenario import loads as loads_scenario
-from .simulate import RunResult, run
-from .state import NetState
+_PUBLIC = {  # name -> (module, attribute or None for the module itself)
+    "BulletnetError": ("common.errors", "BulletnetError"),
+    "DivergenceError": ("common.errors", "DivergenceError"),
+    "RecordingError": ("common.errors", "RecordingError"),
+    "ScenarioError": ("common.errors", "ScenarioError"),
+    "Scenario": ("model.scenario", "Scenario"),
+    "load_scenario": ("model.scenario", "load"),
+    "loads_scenario": ("model.scenario", "loads"),
+    "build_model": ("model.builder", "build_model"),
+    "initial_state": ("model.builder", "initial_state"),
+    "Debris": ("model.debris", "Debris"),
+    "Part": ("model.debris", "Part"),
+    "load_debris": ("model.debris", "load_debris"),
+    "make_debris": ("model.debris", "make_debris"),
+    "contact_table": ("model.materials", "contact_table"),
+    "NetModel": ("model.net", "NetModel"),
+    "NodeKind": ("model.net", "NodeKind"),
+    "NetState": ("model.state", "NetState"),
+    "Recording": ("recording.reader", "Recording"),
+    "open_recording": ("recording.reader", "open_recording"),
+    "metrics": ("analysis.metrics", None),
+    "RunResult": ("sim.loop", "RunResult"),
+    "run": ("sim.loop", "run"),
+}
 
-__all__ = [
-    "BulletnetError", "Debris", "DivergenceError", "NetModel", "NetState", "NodeKind", "Part",
-    "Recording", "RecordingError", "RunResult", "Scenario", "ScenarioError", "__version__",
-    "build_model", "contact_table", "initial_state", "load_debris", "load_scenario",
-    "loads_scenario", "make_debris", "metrics", "open_recording", "run",
-]
+__all__ = sorted([*_PUBLIC, "__version__"])
+
+
+def __getattr__(name: str):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'bulletnet' has no attribute {name!r}")
+    module, attribute = _PUBLIC[name]
+    value = importlib.import_module(f".{module}", __name__)
+    if attribute is not None:
+        value = getattr(value, attribute)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__():
+    return __all__

@@ -20,7 +20,7 @@ held in the cinched nets (the cables drawn with the threads),
 
 The capture picture is taken at the frame of 20-30 s where the net wraps the debris best: the
 largest, over those frames, of the smaller of the two recordings' wrap fractions
-(:func:`bulletnet.metrics.wrap`); the script prints the time and both fractions. Its camera
+(:func:`bulletnet.analysis.metrics.wrap`); the script prints the time and both fractions. Its camera
 looks at the debris from the viewer's default direction, 1.8 times closer than the default
 camera (which frames the whole capture up to the last contact).
 """

@@ -8,7 +8,7 @@ summarised in a table (what `bulletnet sweep` does from a sweep file, here from 
 import sys
 from pathlib import Path
 
-from bulletnet.sweep import Sweep, run_sweep, write_table
+from bulletnet.studies.sweep import Sweep, run_sweep, write_table
 
 QUICK = "--quick" in sys.argv
 elevations = [30.0, 60.0] if QUICK else [30.0, 45.0, 60.0]       # [deg]

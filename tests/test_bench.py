@@ -9,7 +9,9 @@ from conftest import small_scene
 from test_recording_cli import cli
 
 import bulletnet as bn
-from bulletnet.bench import (
+from bulletnet.analysis.stability import scene_limits
+from bulletnet.sim.profiling import ENGINE, Profile, report
+from bulletnet.studies.bench import (
     REFERENCE_DT,
     Method,
     bench,
@@ -17,8 +19,6 @@ from bulletnet.bench import (
     pareto_front,
     parse_method,
 )
-from bulletnet.profiling import ENGINE, Profile, report
-from bulletnet.stability import scene_limits
 
 
 def test_pareto_front_is_the_set_of_non_dominated_runs():
@@ -119,10 +119,10 @@ def test_profile_sections_are_exclusive(monkeypatch):
     # a stopped profile charges nothing more.
     import types
 
-    import bulletnet.profiling
+    import bulletnet.sim.profiling
 
     clock = [0.0]
-    monkeypatch.setattr(bulletnet.profiling, "time",
+    monkeypatch.setattr(bulletnet.sim.profiling, "time",
                         types.SimpleNamespace(perf_counter=lambda: clock[0]))
 
     class Work:
@@ -155,7 +155,7 @@ def test_capture_bench_scores_aggregates_against_a_fine_implicit_reference(tmp_p
     # Reference: the contact scene's own converged run (implicit Euler at 1.25e-4 s). The
     # first-contact error of a step h is at most about h (contact is found to the step) plus
     # the deployment's first-order drift; a run scored against itself scores exactly zero.
-    from bulletnet.bench import REFERENCE_DT_CONTACT, first_contact_measure, wrap_measure
+    from bulletnet.studies.bench import REFERENCE_DT_CONTACT, first_contact_measure, wrap_measure
 
     scene = bn.load_scenario("capture", {
         "net.nodes_per_side": 6, "debris.position": [0.0, 0.0, 3.0],

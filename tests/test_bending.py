@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import bulletnet as bn
-from bulletnet.forces.bending import bending_energy, bending_forces
+from bulletnet.kernels.bending import bending_energy, bending_forces
 from tests.conftest import small_scene
 
 

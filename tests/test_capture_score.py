@@ -1,4 +1,4 @@
-"""The capture score and outcome (bulletnet.capture_score): the score against closed forms,
+"""The capture score and outcome (bulletnet.analysis.capture_score): the score against closed forms,
 the outcome rules on synthetic time series, and real runs judged while they go, stopped once
 decided, and judged again from their recordings alone."""
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import bulletnet as bn
-from bulletnet.capture_score import (
+from bulletnet.analysis.capture_score import (
     SAMPLE_COUNT,
     OutcomeMonitor,
     Score,
@@ -20,9 +20,9 @@ from bulletnet.capture_score import (
     interior_samples,
     mouth_opening,
 )
-from bulletnet.debris import Part, make_debris, rotation_matrix, rotation_quaternion
-from bulletnet.scenario import OutcomeRules
-from bulletnet.topology import perimeter
+from bulletnet.model.debris import Part, make_debris, rotation_matrix, rotation_quaternion
+from bulletnet.model.scenario import OutcomeRules
+from bulletnet.model.topology import perimeter
 from tests.conftest import small_capture
 
 
@@ -50,8 +50,8 @@ def csm():
 
 def test_samples_are_seeded_and_inside_the_debris(csm):
     # reference: the debris' own signed distance (the contact query), negative inside
-    from bulletnet.contact import debris_geometry
-    from bulletnet.forces.contact import debris_distance
+    from bulletnet.kernels.contact import debris_distance
+    from bulletnet.solver.contact_stage import debris_geometry
 
     debris, samples = csm
     assert samples.shape == (SAMPLE_COUNT, 3)
@@ -204,9 +204,9 @@ net's hull, the mouth within 0.3 of its diagonal, for 0.1 s."""
 ])
 def test_a_run_stops_once_decided_and_its_recording_judges_the_same(tmp_path, capsys,
                                                                     overrides, outcome, stop_s):
-    # reference: the recording alone (bulletnet.metrics.capture_outcome, the same monitor on
-    # the recorded frames), and the same run carried to its end
-    from bulletnet.cli import main
+    # reference: the recording alone (bulletnet.analysis.metrics.capture_outcome, the same monitor
+    # on the recorded frames), and the same run carried to its end
+    from bulletnet.cli.main import main
 
     scene = small_capture(**{"outcome.stop_when_decided": True, **overrides})
     result = bn.run(scene, tmp_path / "stop.h5")

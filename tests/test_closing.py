@@ -7,13 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bulletnet import scenario
-from bulletnet.builder import build_model, closing_routes, initial_state
 from bulletnet.engines.fast import FastEngine
-from bulletnet.forces.cable import cable_arrays, cable_energy, cable_forces
-from bulletnet.model import NetModel, NodeKind
-from bulletnet.state import NetState
-from bulletnet.topology import net_corners, perimeter
+from bulletnet.kernels.cable import cable_arrays, cable_energy, cable_forces
+from bulletnet.model import scenario
+from bulletnet.model.builder import build_model, closing_routes, initial_state
+from bulletnet.model.net import NetModel, NodeKind
+from bulletnet.model.state import NetState
+from bulletnet.model.topology import net_corners, perimeter
 
 
 def _cable_model(position, mass, fixed, cable_nodes, rest, rigidity, damping_time):
@@ -206,8 +206,8 @@ def test_closing_energy_rises_by_the_winch_work_and_no_more():
     # mechanical energy (kinetic + thread and cable elastic) may rise above its start by the
     # winches' work and no more; a model error that creates energy fails this.
     from bulletnet import run
-    from bulletnet.metrics import energy, winch_work
-    from bulletnet.recording import open_recording
+    from bulletnet.analysis.metrics import energy, winch_work
+    from bulletnet.recording.reader import open_recording
 
     s = scenario.load("deployment", {
         "net.nodes_per_side": 7, "scene.duration": 2.0, "closing.enabled": True,
@@ -234,8 +234,8 @@ def test_winches_start_at_their_trigger(tmp_path, trigger):
     # first contact + delay (to the step) or from the first recorded frame whose wrap
     # (metrics.wrap, recomputed from the recording) reaches the threshold, and not before.
     from bulletnet import run
-    from bulletnet.metrics import first_contact_time, wrap
-    from bulletnet.recording import open_recording
+    from bulletnet.analysis.metrics import first_contact_time, wrap
+    from bulletnet.recording.reader import open_recording
     from tests.conftest import small_capture
 
     scene = small_capture(**{"closing.enabled": True, "closing.trigger": trigger,

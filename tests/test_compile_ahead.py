@@ -1,4 +1,4 @@
-"""Compiling a first run's kernel groups apart (bulletnet.compile_ahead): the groups name
+"""Compiling a first run's kernel groups apart (bulletnet.sim.compile_ahead): the groups name
 exactly the specializations the compiled loop uses, so what a second process compiles into
 numba's cache is what the run loads."""
 
@@ -8,8 +8,8 @@ import pytest
 from conftest import small_capture
 
 import bulletnet as bn
-from bulletnet.compile_ahead import is_cached, signature
 from bulletnet.engines import make_engine
+from bulletnet.sim.compile_ahead import is_cached, signature
 
 
 @pytest.mark.parametrize("overrides", [

@@ -11,9 +11,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import bulletnet as bn
-from bulletnet import contact
-from bulletnet.debris import Debris, Part
-from bulletnet.forces.contact import debris_distance, normal_step
+from bulletnet.kernels.contact import debris_distance, normal_step
+from bulletnet.model.debris import Debris, Part
+from bulletnet.solver import contact_stage as contact
 
 K, C, M = 4.449e9, 62.0, 2.18e-3  # Table 5-6 spacecraft-inner node pair, an inner node [kg]
 
@@ -187,7 +187,7 @@ def test_debris_distance_of_a_frustum():
 def test_debris_alone_keeps_its_spin_and_mass_properties(tmp_path):
     # References: torque-free rotation about a principal axis (spin rate and angular
     # momentum constant) over the paper's 120 s; the recorded mass and inertia are the
-    # asset's computed ones (bulletnet.debris, checked against quadrature in test_debris).
+    # asset's computed ones (bulletnet.model.debris, checked against quadrature in test_debris).
     scene = bn.load_scenario("capture", {
         "net.nodes_per_side": 2, "debris.position": [0.0, 0.0, 1e4],
         "scene.duration": 120.0, "simulation.dt": 0.01, "simulation.record_rate": 1.0})
@@ -211,7 +211,7 @@ def test_wrap_of_a_flat_net_is_its_solid_angle():
     # Reference: the solid angle of a square of side a seen from distance d on its axis,
     # Omega = 4 arcsin(a^2 / (a^2 + 4 d^2)), over 4 pi; and a plane far wider than its
     # distance covers half of all directions.
-    from bulletnet.capture_score import wrap_fraction
+    from bulletnet.analysis.capture_score import wrap_fraction
 
     ns = 21
     for side, expected in ((20.0, 4 * math.asin(400.0 / 800.0) / (4 * math.pi)),
@@ -226,7 +226,7 @@ def test_implicit_law_ends_an_impact_inelastically():
     # Reference: backward Euler on Eq. 6 (a constraint solver's treatment): the touch-down
     # speed after one step is m u0 / (m + dt c + dt^2 k), ~1e-6 of u0 at dt = 1e-4, and the
     # node then rests at the surface (no rebound), unlike the exact law's e = 0.97.
-    from bulletnet.forces.contact import implicit_normal_step
+    from bulletnet.kernels.contact import implicit_normal_step
 
     dt = 1e-4
     s, u, tc = implicit_normal_step(0.0, -1.0, 0.0, K, C, M, dt)  # touching, approaching

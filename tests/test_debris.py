@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from bulletnet.debris import SECTIONS, Part, create_body, load_debris, mass_properties
+from bulletnet.engines.debris_body import create_body
+from bulletnet.model.debris import SECTIONS, Part, load_debris, mass_properties
 
 
 def exact_part(part: Part):
@@ -120,7 +121,8 @@ def test_tumbling_box_and_panel_flips_as_eulers_equations_say():
     # momentum and energy to O(dt): 3e-4 and 5e-4 at 1/240 s over 80 s.
     from scipy.integrate import solve_ivp
 
-    from bulletnet.debris import RigidDebris, make_debris, rotation_matrix
+    from bulletnet.engines.debris_body import RigidDebris
+    from bulletnet.model.debris import make_debris, rotation_matrix
 
     debris = make_debris("box_and_panel", (
         Part("bus", "box", (2.0, 1.0, 1.5), 1000.0),
@@ -162,7 +164,7 @@ def test_tumbling_box_and_panel_flips_as_eulers_equations_say():
 def test_asset_parts_with_density_and_bad_parts(tmp_path):
     # Reference: a box's volume is the product of its edges (mass = density x volume); bad
     # parts are refused with a one-line error naming the part and the key.
-    from bulletnet.errors import ScenarioError
+    from bulletnet.common.errors import ScenarioError
 
     good = tmp_path / "good.toml"
     good.write_text('[[parts]]\nshape = "box"\nsize = [1.0, 2.0, 3.0]\ndensity = 100.0\n'
@@ -190,9 +192,10 @@ def test_pybullet_compound_matches_the_parts_at_their_poses():
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
 
-    from bulletnet.contact import debris_geometry
-    from bulletnet.debris import collision_shape, make_debris
-    from bulletnet.forces.contact import debris_distance
+    from bulletnet.engines.debris_body import collision_shape
+    from bulletnet.kernels.contact import debris_distance
+    from bulletnet.model.debris import make_debris
+    from bulletnet.solver.contact_stage import debris_geometry
 
     debris = make_debris("mixed", (
         Part("box", "box", (1.0, 3.0, 0.4), 10.0, (0.3, -0.2, 0.5), (20.0, -35.0, 50.0)),

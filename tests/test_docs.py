@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from bulletnet.cli_reference import REFRESH, reference
+from bulletnet.cli.reference import REFRESH, reference
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -20,7 +20,7 @@ def test_cli_reference_is_up_to_date():
 
 def test_cli_reference_lists_every_command_and_option():
     # Reference: the parser itself, as argparse prints it in each command's --help
-    from bulletnet.cli import build_parser
+    from bulletnet.cli.main import build_parser
 
     text = reference()
     parser = build_parser()
@@ -31,6 +31,18 @@ def test_cli_reference_lists_every_command_and_option():
         for option in command._option_string_actions:
             if option not in ("-h", "--help"):
                 assert f"`{option}" in section or f", {option}" in section, (name, option)
+
+
+def test_layout_in_development_md_is_the_tree():
+    # reference: the tree itself (docs/layout.py reads every package, module, script, scene and
+    # page): the layout section cannot miss a file or name one that is gone
+    sys.path.insert(0, str(ROOT / "docs"))
+    try:
+        import layout
+    finally:
+        sys.path.pop(0)
+    assert layout.page_block(layout.PAGE.read_text()) == layout.layout(), (
+        "docs/development.md's layout is stale: run python docs/layout.py --write")
 
 
 def test_readme_test_command_is_the_one_ci_runs():

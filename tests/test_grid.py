@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import bulletnet as bn
-from bulletnet import grid
 from bulletnet.engines import make_engine
+from bulletnet.solver import grid
 from tests.conftest import small_capture, small_scene
 
 

@@ -15,7 +15,8 @@ import pytest
 from test_recording_cli import cli
 
 import bulletnet as bn
-from bulletnet.resources import FOLDERS, data_dir
+import bulletnet.model.scenario
+from bulletnet.common.resources import FOLDERS, data_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -32,7 +33,7 @@ def wheel(tmp_path_factory) -> Path:
 
 def test_wheel_holds_every_module_and_every_data_file(wheel):
     # Reference: the source tree. Every module of the package and every file of the data
-    # folders is in the wheel, the data inside the package where bulletnet.resources looks.
+    # folders is in the wheel, the data inside the package where bulletnet.common.resources looks.
     names = set(zipfile.ZipFile(wheel).namelist())
     expected = {p.relative_to(ROOT).as_posix() for p in (ROOT / "bulletnet").rglob("*.py")}
     for folder in FOLDERS:
@@ -51,7 +52,7 @@ def test_data_folders_are_found_in_the_source_tree():
 def test_scenes_lists_every_shipped_scene_with_its_description():
     proc = cli("scenes")
     assert proc.returncode == 0, proc.stderr
-    for name in bn.scenario.scene_names():
+    for name in bn.model.scenario.scene_names():
         line = next(x for x in proc.stdout.splitlines() if x.startswith(name + " "))
         assert bn.load_scenario(name).scene.description in line
 
@@ -60,7 +61,7 @@ def test_scenes_lists_every_shipped_scene_with_its_description():
 def test_scene_prints_toml_that_reads_back_as_the_same_scene(tmp_path, full):
     # Reference: the shipped scene itself. Its printed TOML, saved in another folder (the
     # file's `base` then names the shipped scene), loads to an equal scene.
-    for name in bn.scenario.scene_names():
+    for name in bn.model.scenario.scene_names():
         proc = cli("scene", name, *(["--full"] if full else []))
         assert proc.returncode == 0, proc.stderr
         tomllib.loads(proc.stdout)

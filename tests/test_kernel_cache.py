@@ -1,4 +1,4 @@
-"""numba's cache follows the package's source (bulletnet.kernel_cache)."""
+"""numba's cache follows the package's source (bulletnet.common.kernel_cache)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from bulletnet import kernel_cache
+from bulletnet.common import kernel_cache
 
 
 def test_numba_caches_in_the_folder_of_this_source():
@@ -29,7 +29,7 @@ def test_cache_folder_is_keyed_on_every_source_file(tmp_path):
     shutil.copytree(kernel_cache.PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
     before = kernel_cache.source_digest(copy)
     assert before == kernel_cache.source_digest()
-    kernel = copy / "forces" / "contact.py"
+    kernel = copy / "kernels" / "contact.py"
     kernel.write_text(kernel.read_text() + "\n# edited\n")
     assert kernel_cache.source_digest(copy) != before
 
@@ -63,7 +63,7 @@ def test_progress_says_compiling_instead_of_an_eta():
     # Reference: the definition: while kernels compile the display names the compilation and
     # the kernel group; once stepping resumes it says how long it took; the rate and ETA
     # count only frames stepped after it.
-    from bulletnet.cli import ProgressBar
+    from bulletnet.cli.main import ProgressBar
 
     stream = _Stream()
     bar = ProgressBar("fast engine, symplectic euler", stream)
@@ -84,7 +84,7 @@ def test_progress_says_compiling_instead_of_an_eta():
 
 
 def test_progress_without_compilation_counts_from_the_start():
-    from bulletnet.cli import ProgressBar
+    from bulletnet.cli.main import ProgressBar
 
     stream = _Stream()
     bar = ProgressBar("fast engine, symplectic euler", stream)
@@ -98,16 +98,16 @@ def test_bulletnet_run_reports_a_compilation(tmp_path, monkeypatch, capsys):
     # so that the test does not have to empty the real cache) shows the notice on stderr.
     import numba
 
-    import bulletnet.simulate
-    from bulletnet.cli import main
+    import bulletnet.sim.loop
+    from bulletnet.cli.main import main
 
-    real_run = bulletnet.simulate.run
+    real_run = bulletnet.sim.loop.run
 
     def run_compiling(*args, **kwargs):
         numba.njit(lambda x: x + 1.0)(1.0)
         return real_run(*args, **kwargs)
 
-    monkeypatch.setattr(bulletnet.simulate, "run", run_compiling)
+    monkeypatch.setattr(bulletnet.sim.loop, "run", run_compiling)
     out = tmp_path / "run.h5"
     assert main(["run", "deployment", "--set", "net.nodes_per_side=4", "--duration", "0.01",
                  "--out", str(out)]) == 0

@@ -1,9 +1,12 @@
-"""The package's modules import each other without cycles (function-level imports included),
-so its layers only point down."""
+"""The package's layers only point down: each package imports (anywhere in its source,
+function-level imports included) only from packages of a lower rank, the heavy libraries
+appear only in the packages that need them, and ``import bulletnet`` loads none of them."""
 
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import bulletnet
@@ -66,6 +69,94 @@ def test_cycle_finder_finds_a_planted_cycle():
 
 def test_no_import_cycles():
     graph = import_graph()
-    assert "bulletnet.stability" in graph["bulletnet.simulate"]  # the graph sees real imports
-    assert "bulletnet.simulate" in graph["bulletnet.bench"]      # lazy ones included
+    assert "bulletnet.analysis.stability" in graph["bulletnet.sim.loop"]  # real imports seen
+    assert "bulletnet.sim.loop" in graph["bulletnet.studies.bench"]      # lazy ones included
     assert find_cycle(graph) == []
+
+
+RANKS = {
+    "common": 0,     # errors, package data, numba's cache folder
+    "kernels": 1,    # compiled leaves: thread, bending, cable forces, contact laws, geometry
+    "model": 2,      # scene file -> topology, net model, state, debris, meshes, materials
+    "solver": 3,     # one step and the compiled loop, the contact stage
+    "recording": 3,  # the HDF5 writer and reader
+    "engines": 4,    # fast, bullet, reference; PyBullet
+    "analysis": 5,   # capture score, metrics, stability limits, plots
+    "sim": 6,        # the run loop and what watches it
+    "studies": 7,    # sweeps, studies, benchmarks, reports
+    "viewer": 7,     # the browser replay
+    "cli": 8,        # the command line
+}
+"""Each package of bulletnet and its layer: a module may import only from its own package
+and from packages of a lower rank (so packages of equal rank never import each other)."""
+
+HEAVY = {  # third-party module -> the packages that may import it
+    "pybullet": {"engines"}, "pybullet_utils": {"engines"},
+    "dask": {"studies"}, "distributed": {"studies"}, "SALib": {"studies"},
+    "matplotlib": {"analysis", "studies"},
+    "viser": {"viewer"},
+    "h5py": {"recording"},
+    "numba": {"common", "kernels", "solver", "engines", "analysis", "sim"},
+    "trimesh": {"model", "viewer"},
+}
+
+
+def _package(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 2 or (len(parts) == 2 and parts[1] in RANKS) else ""
+
+
+def test_every_package_has_a_rank_and_imports_only_below_it():
+    graph = import_graph()
+    packages = {_package(m) for m in graph} - {""}
+    assert packages == set(RANKS), "a package without a rank, or a rank without a package"
+    assert {m for m in graph if not _package(m)} == {"bulletnet"}  # no loose modules
+    wrong = sorted(f"{m} -> {t}" for m, targets in graph.items() if _package(m)
+                   for t in targets
+                   if _package(t) != _package(m) and RANKS[_package(t)] >= RANKS[_package(m)])
+    assert wrong == []
+
+
+def test_the_rank_check_finds_an_upward_import(tmp_path):
+    # the check itself, on a planted upward import: a kernel importing the run loop
+    graph = {"bulletnet.kernels.axial": {"bulletnet.sim.loop"}, "bulletnet.sim.loop": set()}
+    wrong = [(m, t) for m, ts in graph.items() for t in ts
+             if RANKS[_package(t)] >= RANKS[_package(m)]]
+    assert wrong == [("bulletnet.kernels.axial", "bulletnet.sim.loop")]
+
+
+def third_party_imports(path: Path) -> set[str]:
+    """The top-level names of the modules ``path`` imports (statements anywhere, and
+    ``importlib.import_module("name")`` calls with a literal name)."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names.update(a.name.split(".")[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names.add(node.module.split(".")[0])
+        elif (isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(
+                node.func, "id", None)) == "import_module" and node.args
+              and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str)
+              and not node.args[0].value.startswith(".")):
+            names.add(node.args[0].value.split(".")[0])
+    return names
+
+
+def test_heavy_libraries_only_where_they_belong():
+    found = {}
+    for path in PACKAGE.rglob("*.py"):
+        package = _package(_module_name(path))
+        for name in third_party_imports(path) & set(HEAVY):
+            found.setdefault(name, set()).add(package)
+            assert package in HEAVY[name], f"{path.relative_to(PACKAGE)} imports {name}"
+    assert {"pybullet", "numba", "h5py", "viser", "dask"} <= set(found)  # the scan sees them
+
+
+def test_importing_the_package_loads_no_heavy_library():
+    # the Python API and the command line start without numba, PyBullet, h5py, ...: each is
+    # imported when a run, a recording or a plot first needs it
+    code = ("import sys, bulletnet, bulletnet.cli.main; "
+            f"print(sorted(m for m in {sorted(HEAVY | {'scipy': 0})!r} if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"

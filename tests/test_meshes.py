@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 
 import bulletnet as bn
-from bulletnet import contact
-from bulletnet.debris import Part, load_debris, make_debris
-from bulletnet.errors import ScenarioError
-from bulletnet.forces.contact import debris_distance
+import bulletnet.model.builder
+import bulletnet.model.debris
+from bulletnet.common.errors import ScenarioError
+from bulletnet.kernels.contact import debris_distance
+from bulletnet.model.debris import Part, load_debris, make_debris
+from bulletnet.solver import contact_stage as contact
 
 
 @pytest.fixture
@@ -136,7 +138,7 @@ def test_scene_points_debris_asset_at_a_mesh_file(box_file):
     # box is its centre, its inertia m (b^2 + c^2) / 12 about x.
     scene = bn.load_scenario("capture", {"debris.asset": str(box_file),
                                          "debris.density": 100.0})
-    debris = bn.builder.scene_debris(scene)
+    debris = bn.model.builder.scene_debris(scene)
     assert debris.mass == pytest.approx(4800.0, rel=1e-12)
     np.testing.assert_allclose(debris.center_of_mass, 0.0, atol=1e-12)
     assert debris.inertia[0, 0] == pytest.approx(4800.0 * (4.0 + 36.0) / 12.0, rel=1e-12)
@@ -151,8 +153,8 @@ def test_node_rests_on_a_mesh_face_at_its_pair_penetration(box_file):
     setup = contact.setup(scene, model, box)
     a = setup.arrays
     a.com[:] = box.center_of_mass
-    a.quat[0] = bn.debris.rotation_quaternion(np.radians([30.0, 0.0, 0.0]))
-    normal = bn.debris.rotation_matrix(a.quat[0]) @ [0.0, 1.0, 0.0]
+    a.quat[0] = bn.model.debris.rotation_quaternion(np.radians([30.0, 0.0, 0.0]))
+    normal = bn.model.debris.rotation_matrix(a.quat[0]) @ [0.0, 1.0, 0.0]
     k_c = contact.pair_tables(scene, model)[0][0, contact.CLASS_OF_KIND[bn.NodeKind(
         model.kind[0])]]
     r, m, g, dt = model.radius[0], model.mass[0], 9.81, 1e-4
@@ -177,7 +179,7 @@ def test_bullet_engine_decomposes_a_non_convex_mesh():
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
 
-    from bulletnet.debris import collision_shape, create_body
+    from bulletnet.engines.debris_body import collision_shape, create_body
 
     debris = load_debris("apollo_csm_mesh")
     client = BulletClient(pybullet.DIRECT)

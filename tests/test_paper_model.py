@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import bulletnet as bn
-from bulletnet.model import NodeKind
-from bulletnet.topology import thread_pairs
+from bulletnet.model.net import NodeKind
+from bulletnet.model.topology import thread_pairs
 
 
 @pytest.mark.parametrize(("ns", "masses", "threads"), [(6, 40, 64), (11, 125, 224), (21, 445, 844)])

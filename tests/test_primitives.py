@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 import bulletnet as bn
-from bulletnet import contact
-from bulletnet.debris import Part, make_debris, part_mesh
-from bulletnet.forces.contact import debris_distance
+import bulletnet.model.debris
+from bulletnet.kernels.contact import debris_distance
+from bulletnet.model.debris import Part, make_debris, part_mesh
+from bulletnet.solver import contact_stage as contact
 
 RNG_SEED = 15
 
@@ -66,8 +67,8 @@ def test_primitive_distance_and_normal_against_brute_force(part):
     d_ref, n_ref, clear = brute_force(mesh, points)
     rows, mesh = contact.debris_geometry((part,))
     n = np.empty(3)
-    origin, rot = np.array([1.0, -2.0, 0.5]), bn.debris.rotation_matrix(
-        bn.debris.rotation_quaternion([0.3, -0.4, 0.2]))  # a body frame off the world's
+    origin, rot = np.array([1.0, -2.0, 0.5]), bn.model.debris.rotation_matrix(
+        bn.model.debris.rotation_quaternion([0.3, -0.4, 0.2]))  # a body frame off the world's
     for p, d, nr, ok in zip(points, d_ref, n_ref, clear, strict=True):
         ours = debris_distance(origin + rot @ p, origin, rot, rows, mesh, n)
         assert ours == pytest.approx(d, abs=chord + 1e-12)
@@ -86,7 +87,7 @@ def box_world(rotation=(0.0, 0.0, 0.0)):
     box = make_debris("box", (Part("box", "box", (4.0, 2.0, 6.0), 1e6),))
     setup = contact.setup(scene, model, box)
     setup.arrays.com[:] = box.center_of_mass
-    setup.arrays.quat[0] = bn.debris.rotation_quaternion(np.radians(rotation))
+    setup.arrays.quat[0] = bn.model.debris.rotation_quaternion(np.radians(rotation))
     return scene, model, setup
 
 
@@ -129,7 +130,7 @@ def test_node_rests_on_a_tilted_box_face_at_its_pair_penetration():
     # Reference: static equilibrium of Eq. 6, k_c delta = m a, on the top face of a box
     # turned 30 deg about x, pressed along its normal.
     scene, model, setup = box_world((30.0, 0.0, 0.0))
-    rot = bn.debris.rotation_matrix(setup.arrays.quat[0])
+    rot = bn.model.debris.rotation_matrix(setup.arrays.quat[0])
     normal = rot @ [0.0, 1.0, 0.0]
     k_c = contact.pair_tables(scene, model)[0][0, contact.CLASS_OF_KIND[bn.NodeKind(
         model.kind[0])]]
@@ -147,7 +148,7 @@ def test_node_slides_down_a_tilted_box_face_with_kinetic_friction():
     theta = math.radians(25.0)
     mu_k = scene.friction.aluminium_net / scene.friction.kinetic_ratio
     assert math.tan(theta) > scene.friction.aluminium_net
-    rot = bn.debris.rotation_matrix(setup.arrays.quat[0])
+    rot = bn.model.debris.rotation_matrix(setup.arrays.quat[0])
     normal, down = rot @ [0.0, 1.0, 0.0], rot @ [-1.0, 0.0, 0.0]
     g, dt, steps = 9.81, 1e-4, 5000
     r, m = model.radius[0], model.mass[0]

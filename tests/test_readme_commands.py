@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from bulletnet.study import MOUTH_AREA_TIME_S
+from bulletnet.studies.study import MOUTH_AREA_TIME_S
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -54,7 +54,7 @@ def shorten_plan(path: Path) -> None:
     simulated (a bending-effect study :data:`MOUTH_AREA_TIME_S`, the time it measures at)
     and a study :data:`PLAN_RUNS` runs."""
     doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    long_enough = doc.get("function") == "bulletnet.study:bending_effect"
+    long_enough = doc.get("function") == "bulletnet.studies.study:bending_effect"
     doc.setdefault("set", {})["scene.duration"] = MOUTH_AREA_TIME_S if long_enough else SHORT_S
     if "runs" in doc:
         doc["runs"] = PLAN_RUNS
@@ -102,7 +102,7 @@ def test_readme_commands_run_in_order_in_a_fresh_folder(tmp_path):
         if ">" in args:  # `bulletnet scene capture > mine.toml`: stdout into a file
             args, into = args[:args.index(">")], tmp_path / args[args.index(">") + 1]
         args = shortened(args, tmp_path)
-        full = [sys.executable, "-m", "bulletnet.cli", *args]
+        full = [sys.executable, "-m", "bulletnet.cli.main", *args]
         if args[0] == "view" and "--html" not in args:
             proc = serve_and_stop(full, tmp_path)
             assert "viewer stopped" in proc.stderr, proc.stderr

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import bulletnet as bn
-from bulletnet.scenario import loads, to_toml
+from bulletnet.model.scenario import loads, to_toml
 from tests.conftest import small_scene
 
 TINY = ["--set", "net.nodes_per_side=4", "--set", "net.fold_ratio=0.99",
@@ -20,7 +20,7 @@ TINY = ["--set", "net.nodes_per_side=4", "--set", "net.fold_ratio=0.99",
 
 
 def cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "bulletnet.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "bulletnet.cli.main", *args], capture_output=True,
                           text=True, cwd=cwd, timeout=300)
 
 
@@ -106,8 +106,8 @@ def test_an_overflowing_speed_is_a_divergence_not_a_warning(scene):
     # check finds the divergence without numpy's overflow warning (made an error here)
     import warnings
 
-    from bulletnet.builder import build_model, initial_state
-    from bulletnet.simulate import _check
+    from bulletnet.model.builder import build_model, initial_state
+    from bulletnet.sim.loop import _check
 
     state = initial_state(scene, build_model(scene))
     state.velocity[3] = [1e200, 0.0, 0.0]
@@ -172,7 +172,7 @@ def test_bad_input_one_line_exit_2(args, needle):
 
 
 def test_params_prints_the_debris_mass_properties():
-    # Reference: the asset's computed mass properties (bulletnet.debris, checked in
+    # Reference: the asset's computed mass properties (bulletnet.model.debris, checked in
     # test_debris), as the CLI reports them.
     proc = cli("params", "capture_envisat", "--json")
     assert proc.returncode == 0, proc.stderr

@@ -16,9 +16,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import bulletnet as bn
-from bulletnet.cli import main
-from bulletnet.errors import ScenarioError
-from bulletnet.scenario import from_dict, to_dict
+from bulletnet.cli.main import main
+from bulletnet.common.errors import ScenarioError
+from bulletnet.model.scenario import from_dict, to_dict
 from tests.conftest import small_scene
 
 # a run of a few seconds of wall time: 6 x 6 net, 4 s simulated at dt = 1e-6 s (about 3 s of
@@ -28,7 +28,7 @@ SLOW = ["run", "deployment", "--set", "net.nodes_per_side=6", "--duration", "4",
 
 
 def start(args, out):
-    return subprocess.Popen([sys.executable, "-m", "bulletnet.cli", *args, "--out", str(out)],
+    return subprocess.Popen([sys.executable, "-m", "bulletnet.cli.main", *args, "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -73,7 +73,7 @@ def test_sigkill_leaves_a_prefix_of_the_run(tmp_path):
     # SIGKILL at a random moment the .part file opens and holds a prefix of its frames, bit for
     # bit, up to the last flush (every FLUSH_INTERVAL_S = 1 s of wall time).
     full = tmp_path / "full.h5"
-    assert subprocess.run([sys.executable, "-m", "bulletnet.cli", *SLOW, "--out", str(full)],
+    assert subprocess.run([sys.executable, "-m", "bulletnet.cli.main", *SLOW, "--out", str(full)],
                           capture_output=True, timeout=300).returncode == 0
     reference = bn.open_recording(full)
     rng = random.Random(3)

@@ -1,4 +1,5 @@
-"""Stability limits: the analytical bounds of bulletnet.stability against runs that blow up."""
+"""Stability limits: the analytical bounds of bulletnet.analysis.stability against runs that blow
+up."""
 
 from __future__ import annotations
 
@@ -12,9 +13,9 @@ from conftest import small_scene
 from test_recording_cli import cli
 
 import bulletnet as bn
-from bulletnet.bench import is_stable
+from bulletnet.analysis.stability import Limits, analytical_limits, scene_limits
 from bulletnet.engines import make_engine
-from bulletnet.stability import Limits, analytical_limits, scene_limits
+from bulletnet.studies.bench import is_stable
 
 
 def test_two_mass_thread_limits_match_closed_form():

@@ -9,7 +9,8 @@ import pytest
 from test_recording_cli import cli
 
 import bulletnet as bn
-from bulletnet.sweep import load_sweep, run_sweep, write_table
+import bulletnet.model.scenario
+from bulletnet.studies.sweep import load_sweep, run_sweep, write_table
 
 SWEEP = """
 scene = "deployment"
@@ -90,7 +91,7 @@ def test_cli_bad_sweep_is_one_line(tmp_path):
 
 
 def test_example_sweep_is_sixteen_valid_variants():
-    spec = load_sweep(bn.scenario.SCENARIO_DIR / "sweep_example.toml")
+    spec = load_sweep(bn.model.scenario.SCENARIO_DIR / "sweep_example.toml")
     assert len(spec.variants) == 16 and len(set(map(str, spec.variants))) == 16
 
 
@@ -101,8 +102,8 @@ def test_corner_tension_is_the_corner_threads_with_a_tether_on():
     # last four threads (which, with a tether, are the tether's).
     from types import SimpleNamespace
 
-    from bulletnet.model import NodeKind, corner_threads
-    from bulletnet.sweep import max_corner_tension
+    from bulletnet.model.net import NodeKind, corner_threads
+    from bulletnet.studies.sweep import max_corner_tension
 
     model = bn.build_model(bn.load_scenario("capture_closing"))
     corner = corner_threads(model.pairs, model.kind)

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import bulletnet as bn
-from bulletnet import integrators
 from bulletnet.engines import make_engine
-from bulletnet.forces.axial import axial_energy, axial_forces
-from bulletnet.model import NetModel
-from bulletnet.state import NetState
+from bulletnet.kernels.axial import axial_energy, axial_forces
+from bulletnet.model.net import NetModel
+from bulletnet.model.state import NetState
+from bulletnet.solver import integrators
 from tests.conftest import small_scene
 
 K, M, L0 = 4.0e5, 4.0e-3, 0.5  # thread stiffness [N/m], node mass [kg], rest length [m]

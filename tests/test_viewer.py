@@ -1,5 +1,5 @@
 """The browser replay: timeline, decimation, capture groups, colours, the mouth panel against
-bulletnet.metrics, what a new frame sends, the CLI's errors, the HTML export and its index.
+bulletnet.analysis.metrics, what a new frame sends, the CLI's errors, the HTML export and its index.
 Browser checks are in test_viewer_browser.py."""
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ def _invert(axes, xy):
 
 
 def test_mouth_panel_draws_bulletnet_metrics(runs):
-    # reference: bulletnet.metrics (mouth polygon, area, height) at the panel's frame
+    # reference: bulletnet.analysis.metrics (mouth polygon, area, height) at the panel's frame
     replay = load_replay([runs["plain"], runs["bending"]])
     panel = Panel(replay, [0.1, 0.2])
     k = replay.time.size // 2
@@ -127,7 +127,7 @@ def test_mouth_panel_draws_bulletnet_metrics(runs):
 
 
 def test_panel_plots_the_capture_score_and_names_the_outcome(runs):
-    # reference: bulletnet.metrics.capture_outcome on the recording; a deployment has none
+    # reference: bulletnet.analysis.metrics.capture_outcome on the recording; a deployment has none
     replay = load_replay([runs["capture"], runs["plain"]])
     panel = Panel(replay, [0.5])
     scores, judged = bn.metrics.capture_outcome(bn.open_recording(runs["capture"]))
@@ -180,7 +180,7 @@ def test_missing_groups_hide_their_controls(runs):
 
 def cli(capsys, *args):
     """``bulletnet view ARGS`` in this process: (exit code, stdout, stderr)."""
-    from bulletnet.cli import main
+    from bulletnet.cli.main import main
 
     try:
         code = main(["view", *map(str, args)])

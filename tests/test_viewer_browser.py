@@ -133,7 +133,7 @@ def test_exported_html_draws_plays_and_steps(browser, runs, empty_scene):
 
 def test_live_server_draws_plays_and_hides_missing_controls(browser, runs, empty_scene):
     proc = subprocess.Popen(
-        [sys.executable, "-m", "bulletnet.cli", "view", str(runs["capture"]),
+        [sys.executable, "-m", "bulletnet.cli.main", "view", str(runs["capture"]),
          str(runs["bending"]), "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         text=True)
     try:

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ..model import NetModel
-from ..scenario import Scenario
+from ..model.net import NetModel
+from ..model.scenario import Scenario
 from .base import Engine
 
 

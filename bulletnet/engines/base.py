@@ -7,19 +7,20 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from .. import contact, integrators
-from ..builder import scene_debris
-from ..forces.cable import CableArrays, cable_arrays
-from ..model import NetModel
-from ..scenario import Scenario
-from ..state import NetState
+from ..kernels.cable import CableArrays, cable_arrays
+from ..model.builder import scene_debris
+from ..model.net import NetModel
+from ..model.scenario import Scenario
+from ..model.state import NetState
+from ..solver import contact_stage as contact
+from ..solver import integrators
 
 
 def rotational_rates(model: NetModel) -> tuple[np.ndarray, np.ndarray]:
     """Per node, the damping rate sum(c_b + c_t l^2) / J_i [1/s] and the squared frequency
     sum(k_b + k_t l^2) / J_i [rad^2/s^2] of its rotation on its threads' bending and
     transverse springs, each shape (N,) (zero for clamped nodes): half the Gershgorin bounds
-    of :func:`~bulletnet.integrators.rotational_bounds` over the node's inertia."""
+    of :func:`~bulletnet.solver.integrators.rotational_bounds` over the node's inertia."""
     c_sum, k_sum = (0.5 * b for b in integrators.rotational_bounds(model))
     free = ~model.fixed
     return np.where(free, c_sum / model.inertia, 0.0), np.where(free, k_sum / model.inertia, 0.0)
@@ -91,7 +92,7 @@ class Engine(ABC):
         self.steps = 0
         """Steps taken so far [-]."""
         self.debris = scene_debris(scenario)
-        """The scene's debris (:class:`~bulletnet.debris.Debris`) or None."""
+        """The scene's debris (:class:`~bulletnet.model.debris.Debris`) or None."""
         self.contact = contact.setup(scenario, model, self.debris, self.handles_contact)
         """Contact arrays of the compiled stage (all off where this engine leaves contact
         to PyBullet)."""
@@ -167,7 +168,7 @@ class Engine(ABC):
 
     def kernel_groups(self, state: NetState) -> dict[str, list[tuple]]:
         """The compiled kernels this engine's steps call, by group, as (dispatcher, arguments)
-        (:mod:`bulletnet.compile_ahead`); none unless an engine says (the fast engine does)."""
+        (:mod:`bulletnet.sim.compile_ahead`); none unless an engine says (the fast engine does)."""
         return {}
 
     @abstractmethod

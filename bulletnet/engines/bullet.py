@@ -22,15 +22,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import integrators
-from ..contact import CLASS_OF_KIND
-from ..debris import body_origin, collision_shape, create_body, read_state
-from ..forces.cable import reel
-from ..model import NodeKind
-from ..quiet import bullet_client, pybullet
-from ..state import NetState
+from ..kernels.cable import reel
+from ..model.debris import body_origin
+from ..model.net import NodeKind
+from ..model.state import NetState
+from ..solver import integrators
+from ..solver.contact_stage import CLASS_OF_KIND
 from .base import Engine
 from .bullet_materials import fit
+from .debris_body import collision_shape, create_body, read_state
+from .quiet import bullet_client, pybullet
 
 
 class BulletEngine(Engine):

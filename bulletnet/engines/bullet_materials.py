@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..contact import pair_tables
-from ..hertz import BODY_CLASSES
-from ..model import NetModel
-from ..scenario import Scenario
+from ..model.materials import BODY_CLASSES
+from ..model.net import NetModel
+from ..model.scenario import Scenario
+from ..solver.contact_stage import pair_tables
 
 
 @dataclass(frozen=True)

@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import contact, integrators
-from .. import grid as grid_kernels
-from ..debris import RigidDebris
-from ..state import NetState
+from ..model.state import NetState
+from ..solver import contact_stage as contact
+from ..solver import grid as grid_kernels
+from ..solver import integrators
 from .base import Engine
+from .debris_body import RigidDebris
 
 
 class FastEngine(Engine):
@@ -44,7 +45,7 @@ class FastEngine(Engine):
     @property
     def free(self) -> bool:
         """Whether the net is free: on the grid, with no bending, no contact and no cables.
-        Its steps are then :func:`bulletnet.grid.free_steps` alone."""
+        Its steps are then :func:`bulletnet.solver.grid.free_steps` alone."""
         return (self.grid is not None and not self.bending and self.contact_arrays is None
                 and self.arrays.cables is None)
 
@@ -56,7 +57,7 @@ class FastEngine(Engine):
 
     def _loop_arrays(self, state: NetState) -> tuple:
         """(pos, vel, quat, omega) as the compiled loop steps them: the grid's views of its
-        rows (which :func:`bulletnet.grid.load` fills), or the state's own arrays on the pair
+        rows (which :func:`bulletnet.solver.grid.load` fills), or the state's own arrays on the pair
         list; (quat, omega) None without bending."""
         if self.grid is None:
             return (state.position, state.velocity, *self.rotations(state))
@@ -67,7 +68,7 @@ class FastEngine(Engine):
         """The compiled kernels the loop of this engine calls, by group, each as (dispatcher,
         the arguments the loop passes it): ``step`` (the threads' step on this path), with
         bending on the grid ``bending``, with contact ``contact`` (the contact stage). For
-        compiling groups apart, on both cores (:mod:`bulletnet.compile_ahead`); empty for a
+        compiling groups apart, on both cores (:mod:`bulletnet.sim.compile_ahead`); empty for a
         free net, whose first run compiles little."""
         if self.free:
             return {}

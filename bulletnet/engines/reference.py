@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import integrators
-from ..errors import ScenarioError
-from ..state import NetState
+from ..common.errors import ScenarioError
+from ..model.state import NetState
+from ..solver import integrators
 from .base import Engine
 
 

@@ -11,8 +11,8 @@ import time
 from html import escape, unescape
 from pathlib import Path
 
-from ..errors import ScenarioError
-from ..resources import data_dir
+from ..common.errors import ScenarioError
+from ..common.resources import data_dir
 from .panel import Panel
 from .replay import Replay
 from .scene import build_scene, viser_server

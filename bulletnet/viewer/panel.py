@@ -1,8 +1,8 @@
 """The mouth panel as SVG (Figs. 6 and 11): the mouth shape (x-y projection of the perimeter
 nodes) of every recording at the current time over snapshot outlines at chosen times, then
 mouth area, net height (Eq. 13) and, for captures, the capture score (capture quality solid,
-enclosed fraction dashed, mouth opening dotted; :mod:`bulletnet.capture_score`) against time
-with a cursor; the legend gives each capture's outcome.
+enclosed fraction dashed, mouth opening dotted; :mod:`bulletnet.analysis.capture_score`) against
+time with a cursor; the legend gives each capture's outcome.
 
 One renderer for both viewers: :meth:`Panel.svg` is the whole figure at a frame (the live
 server sends it on each new frame), :meth:`Panel.updates` the attributes that change from

@@ -1,7 +1,7 @@
 """What a replay shows, as arrays: recordings decimated onto one shared timeline, the capture
 groups (debris pose and mesh, contacts) when a recording has them, the paper's measures and
-the capture score and outcome from :mod:`bulletnet.metrics`, and the colours. No viser here:
-the live server and the HTML export both draw from a :class:`Replay`.
+the capture score and outcome from :mod:`bulletnet.analysis.metrics`, and the colours. No viser
+here: the live server and the HTML export both draw from a :class:`Replay`.
 """
 
 from __future__ import annotations
@@ -10,10 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import metrics
-from ..errors import RecordingError, ScenarioError
-from ..model import NodeKind
-from ..recording import Recording, open_recording
+from ..analysis import metrics
+from ..common.errors import RecordingError, ScenarioError
+from ..model.net import NodeKind
+from ..recording.reader import Recording, open_recording
 
 PALETTE = ((31, 119, 180), (230, 97, 1), (44, 160, 44), (148, 103, 189))
 """Colour of each recording [RGB 0-255], in the order given: blue, orange, green, purple."""
@@ -70,7 +70,7 @@ class Track:
     radius: np.ndarray
     """Node radii [m], shape (N,)."""
     kind: np.ndarray
-    """Node kinds (:class:`bulletnet.model.NodeKind`) [-], shape (N,)."""
+    """Node kinds (:class:`bulletnet.model.net.NodeKind`) [-], shape (N,)."""
     pairs: np.ndarray
     """End nodes of the threads, then of the closing cables' spans [-], shape (P, 2)."""
     mouth: np.ndarray
@@ -83,7 +83,7 @@ class Track:
     contacts: ContactTrack | None
     score: np.ndarray | None = None
     """Capture score: enclosed fraction, mouth opening, capture quality [-], shape (T, 3);
-    None without debris and contacts (:func:`bulletnet.metrics.capture_outcome`)."""
+    None without debris and contacts (:func:`bulletnet.analysis.metrics.capture_outcome`)."""
     outcome: str = ""
     """The capture's outcome and when it was decided, as text; "" without a score."""
 
@@ -245,7 +245,7 @@ def _scale(values: list[np.ndarray]) -> float:
 
 
 def load_replay(paths: list, every: int = 1) -> Replay:
-    """Open the recordings (:func:`bulletnet.recording.open_recording`) and put every
+    """Open the recordings (:func:`bulletnet.recording.reader.open_recording`) and put every
     ``every``-th frame of each on one timeline."""
     if not 1 <= len(paths) <= len(PALETTE):
         raise ScenarioError(f"a replay shows 1 to {len(PALETTE)} recordings, got {len(paths)}")

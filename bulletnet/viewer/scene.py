@@ -12,7 +12,7 @@ import io
 
 import numpy as np
 
-from ..errors import BulletnetError
+from ..common.errors import BulletnetError
 from .replay import Replay, Track, node_colours, thread_colours
 
 TRAIL_FRAMES = 60

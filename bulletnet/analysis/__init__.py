@@ -1,0 +1,1 @@
+"""What a recording means: capture score, metrics, stability limits, plots."""

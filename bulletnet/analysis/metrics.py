@@ -1,0 +1,295 @@
+"""The paper's aggregate measures (Sec. 4), computed from recordings only.
+
+- mouth: the net's perimeter nodes projected on x-y (Figs. 4a, 6, 11);
+- mouth area (shoelace formula) and mouth diagonal (net corner 0 to net corner Ns^2 - 1, in
+  the x-y projection) over time (Fig. 7b);
+- time to 90 % deployed: the first time the mouth area reaches 90 % of L^2;
+- net height (Eq. 13): z of the innermost node (the mean of the four central nodes for even
+  Ns) minus the mean z of the four net corners (Figs. 4b, 7a);
+- RMSE per node (Eq. 14) and node-averaged RMSE over time (Eq. 15) between two recordings on
+  their common sample times (Tables 2-4, Figs. 5, 8).
+
+Capture (Sec. 5), from recordings with debris and contact:
+
+- first-contact time (to the step, from the run), nodes in contact over time;
+- wrap: the fraction of all directions from the debris' centre of mass along which a ray
+  meets the net's surface (its mesh quads, two triangles each). A flat 20 m net 10 m away
+  covers 0.17; a net wrapped all round, 1. Rays: a Fibonacci sphere of ``directions``;
+- the capture score (enclosed fraction, mouth opening, capture quality) over time and the
+  outcome (captured, escaped, missed, undecided) with the time it was decided: the run
+  loop's own :class:`~bulletnet.analysis.capture_score.OutcomeMonitor` on the recorded frames, under
+  the recording's ``[outcome]`` rules (docs/capture.md);
+- leave time: the end of the last frame interval with debris contact, when no contact follows
+  for at least ``LEAVE_QUIET_S`` to the end of the run;
+- the debris' spin before and after: angular velocity [deg/s] at the first and last frame;
+- the mechanical energy: the nodes' kinetic energy, the threads' and closing cables'
+  elastic energy and the debris' kinetic energy. What it leaves out (the nodes' rotation, the
+  bending and contact springs) is never negative and zero at the start of a scene, and every
+  force of the model is passive: so it never rises above its initial value plus the work of
+  the closing mechanism's winches (:func:`winch_work`) in a sound run.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..common.errors import RecordingError
+from ..model.debris import rotation_matrix
+from ..model.topology import center_nodes, net_corners, perimeter
+from ..recording.reader import Recording
+from .capture_score import OutcomeMonitor, ScoreGeometry, interior_samples, wrap_fraction
+
+LEAVE_QUIET_S = 5.0
+"""Contact-free time [s] that must follow the last contact for the net to count as gone."""
+
+
+def mouth(rec: Recording) -> np.ndarray:
+    """Mouth polygon: perimeter nodes in order, x-y only [m], shape (T, 4 Ns - 4, 2)."""
+    return rec.position[:, perimeter(rec.nodes_per_side), :2]
+
+
+def mouth_area(rec: Recording) -> np.ndarray:
+    """Area enclosed by the mouth polygon in the x-y plane [m^2], shape (T,)."""
+    xy = mouth(rec)
+    x, y = xy[..., 0], xy[..., 1]
+    return 0.5 * np.abs(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1))
+
+
+def mouth_diagonal(rec: Recording) -> np.ndarray:
+    """x-y distance between net corner 0 and the opposite corner Ns^2 - 1 [m], shape (T,)."""
+    c = net_corners(rec.nodes_per_side)
+    return np.linalg.norm(rec.position[:, c[3], :2] - rec.position[:, c[0], :2], axis=1)
+
+
+def net_height(rec: Recording) -> np.ndarray:
+    """Eq. 13: z of the innermost node minus the mean z of the four net corners [m], shape (T,)."""
+    ns = rec.nodes_per_side
+    z = rec.position[..., 2]
+    return z[:, center_nodes(ns)].mean(axis=1) - z[:, net_corners(ns)].mean(axis=1)
+
+
+def side_length(rec: Recording) -> float:
+    """Side L = (Ns - 1) l_mesh of the fully open net [m] (thread 0 is an inner thread)."""
+    return (rec.nodes_per_side - 1) * float(rec.rest_length[0])
+
+
+def deployed_time(rec: Recording, fraction: float = 0.9) -> float | None:
+    """First sample time [s] at which the mouth area reaches ``fraction`` of L^2; None if it
+    never does."""
+    above = np.nonzero(mouth_area(rec) >= fraction * side_length(rec) ** 2)[0]
+    return float(rec.time[above[0]]) if above.size else None
+
+
+def summary(rec: Recording) -> dict:
+    """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys;
+    with the capture measures under ``capture`` for recordings with debris and contact."""
+    doc = {
+        "time_s": rec.time.tolist(),
+        "mouth_area_m2": mouth_area(rec).tolist(),
+        "mouth_diagonal_m": mouth_diagonal(rec).tolist(),
+        "net_height_m": net_height(rec).tolist(),
+        "status": rec.status,
+    }
+    if rec.debris is not None and rec.contacts is not None:
+        doc["capture"] = capture_summary(rec)
+    return doc
+
+
+def common_times(a: Recording, b: Recording, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (ia, ib) of the sample times the two recordings share (to ``tol`` seconds)."""
+    j = np.searchsorted(b.time, a.time)
+    j = np.clip(j, 0, b.time.size - 1)
+    jm = np.clip(j - 1, 0, b.time.size - 1)
+    best = np.where(np.abs(b.time[jm] - a.time) < np.abs(b.time[j] - a.time), jm, j)
+    ok = np.abs(b.time[best] - a.time) <= tol
+    return np.nonzero(ok)[0], best[ok]
+
+
+def rmse(a: Recording, b: Recording) -> dict:
+    """Eq. 14-15 between two recordings of the same net on their common sample times.
+
+    Returns per-node RMSE arrays ``pos`` [m] and ``vel`` [m/s], shape (N,), their max and
+    average over nodes, the node-averaged RMSE over time ``pos_t``/``vel_t`` (Eq. 15), shape
+    (T_common,), and the common ``time`` [s]."""
+    if a.position.shape[1] != b.position.shape[1]:
+        raise RecordingError(
+            f"{a.path} has {a.position.shape[1]} nodes, {b.path} has {b.position.shape[1]}: "
+            "not the same net")
+    ia, ib = common_times(a, b)
+    if ia.size == 0:
+        raise RecordingError(f"{a.path} and {b.path} share no sample time")
+    dx = np.sum((a.position[ia] - b.position[ib]) ** 2, axis=-1)  # (T, N)
+    dv = np.sum((a.velocity[ia] - b.velocity[ib]) ** 2, axis=-1)
+    pos, vel = np.sqrt(dx.mean(axis=0)), np.sqrt(dv.mean(axis=0))
+    return {
+        "rmse_pos_max": float(pos.max()), "rmse_pos_avg": float(pos.mean()),
+        "rmse_vel_max": float(vel.max()), "rmse_vel_avg": float(vel.mean()),
+        "samples": int(ia.size), "time": a.time[ia],
+        "pos": pos, "vel": vel,
+        "pos_t": np.sqrt(dx.mean(axis=1)), "vel_t": np.sqrt(dv.mean(axis=1)),
+    }
+
+
+def _require(rec: Recording, group: str) -> dict:
+    data = getattr(rec, group)
+    if data is None:
+        raise RecordingError(f"{rec.path}: no /{group} in this recording (a scene without "
+                             f"{'debris' if group == 'debris' else 'contact'})")
+    return data
+
+
+def debris_axis(rec: Recording) -> np.ndarray:
+    """The debris' long (body y) axis in the world [-], shape (T, 3)."""
+    return rotation_matrix(_require(rec, "debris")["orientation"])[..., 1]
+
+
+def debris_center_of_mass(rec: Recording) -> np.ndarray:
+    """World position of the debris' centre of mass [m], shape (T, 3)."""
+    d = _require(rec, "debris")
+    com = np.asarray(d["attrs"]["center_of_mass"], dtype=float)
+    return d["position"] + rotation_matrix(d["orientation"]) @ com
+
+
+def first_contact_time(rec: Recording) -> float | None:
+    """Time of the first node-debris contact [s] (to the step), or None."""
+    _require(rec, "contacts")
+    t = float(rec.attrs.get("first_contact_s", -1.0))
+    if t >= 0:
+        return t
+    hit = np.nonzero(rec.contacts["count"] > 0)[0]
+    return float(rec.time[hit[0]]) if hit.size else None
+
+
+def nodes_in_contact(rec: Recording) -> np.ndarray:
+    """Nodes that touched the debris in each frame's interval [-], shape (T,)."""
+    return _require(rec, "contacts")["count"]
+
+
+def leave_time(rec: Recording) -> float | None:
+    """When the net left the debris [s]: the end of the last interval with contact, if at
+    least :data:`LEAVE_QUIET_S` without contact follow to the end of the run; else None."""
+    hit = np.nonzero(nodes_in_contact(rec) > 0)[0]
+    if not hit.size or rec.time[-1] - rec.time[hit[-1]] < LEAVE_QUIET_S:
+        return None
+    return float(rec.time[hit[-1]])
+
+
+def wrap(rec: Recording, directions: int = 400) -> np.ndarray:
+    """Fraction of directions from the debris' centre of mass whose ray meets the net's
+    surface [-], shape (T,) (:func:`bulletnet.analysis.capture_score.wrap_fraction`)."""
+    origin = debris_center_of_mass(rec)
+    return np.array([wrap_fraction(rec.position[k], rec.nodes_per_side, origin[k], directions)
+                     for k in range(rec.time.size)])
+
+
+def score_geometry(rec: Recording) -> ScoreGeometry:
+    """The net and debris data of the capture score (:mod:`bulletnet.analysis.capture_score`): the
+    points inside the debris recorded with the run (``/debris/interior_samples``), or, for a
+    recording without them, drawn again from the scene's debris asset."""
+    d = _require(rec, "debris")
+    samples = d.get("interior_samples")
+    if samples is None:
+        from ..model.builder import scene_debris
+
+        samples = interior_samples(scene_debris(_scene(rec)))
+    return ScoreGeometry.of(rec, samples, d["attrs"]["center_of_mass"])
+
+
+def _scene(rec: Recording):
+    """The scene a recording ran (its ``scenario`` attribute)."""
+    from ..model.scenario import loads
+
+    return loads(str(rec.attrs["scenario"]), f"{rec.path} (scenario attribute)")
+
+
+def capture_outcome(rec: Recording) -> tuple[np.ndarray, OutcomeMonitor]:
+    """The capture score of every frame, columns enclosed fraction, mouth opening and capture
+    quality [-], shape (T, 3), and the outcome monitor after the last frame, judged by the
+    recording's own ``[outcome]`` rules: the same monitor, on the same frames, as the run's
+    (a run that judged itself recorded the same ``outcome`` and ``outcome_time_s``)."""
+    d = _require(rec, "debris")
+    count = _require(rec, "contacts")["count"]
+    monitor = OutcomeMonitor(_scene(rec).outcome, score_geometry(rec))
+    scores = np.array([monitor.observe(float(rec.time[k]), rec.position[k], rec.velocity[k],
+                                       d["position"][k], d["orientation"][k],
+                                       d["velocity"][k], int(count[k]))
+                       for k in range(rec.time.size)])
+    monitor.finish(rec.status == "completed")
+    return scores, monitor
+
+
+def energy(rec: Recording) -> np.ndarray:
+    """Mechanical energy [J], shape (T,): the nodes' translational kinetic energy, the
+    threads' and closing cables' elastic energy (Eq. 3 springs) and, with debris, its kinetic
+    energy (translation of its centre of mass and rotation about it). Leaves out the nodes'
+    rotation and the bending and contact springs (see the module doc)."""
+    from ..kernels.axial import axial_energy
+
+    total = 0.5 * np.einsum("n,tna,tna->t", rec.mass, rec.velocity, rec.velocity)
+    total += axial_energy(rec.position, rec.pairs, rec.rest_length, rec.stiffness)
+    if rec.cables is not None:
+        from ..kernels.cable import cable_energy
+
+        c = rec.cables
+        total += cable_energy(c["length"], c["rest_length"], c["rigidity"]).sum(axis=1)
+    if rec.debris is not None:
+        d = rec.debris
+        rot = rotation_matrix(d["orientation"])
+        inertia = rot @ np.asarray(d["attrs"]["inertia"], dtype=float) @ np.swapaxes(rot, 1, 2)
+        w = d["angular_velocity"]
+        total += 0.5 * float(d["attrs"]["mass"]) * np.einsum("ta,ta->t", d["velocity"],
+                                                              d["velocity"])
+        total += 0.5 * np.einsum("ta,tab,tb->t", w, inertia, w)
+    return total
+
+
+def winch_work(rec: Recording) -> np.ndarray:
+    """Work done by all the closing mechanism's winches so far [J], shape (T,); zero without
+    one. The mechanical energy (:func:`energy`) may rise by this much and no more."""
+    if rec.cables is None:
+        return np.zeros(rec.time.size)
+    return rec.cables["work"].sum(axis=1)
+
+
+def spin(rec: Recording) -> dict:
+    """The debris' angular velocity [deg/s] at the first and last frame, (3,) each, and the
+    change of its magnitude [deg/s]."""
+    w = np.degrees(_require(rec, "debris")["angular_velocity"])
+    return {"initial_deg_s": w[0].tolist(), "final_deg_s": w[-1].tolist(),
+            "magnitude_change_deg_s": float(np.linalg.norm(w[-1]) - np.linalg.norm(w[0]))}
+
+
+def capture_summary(rec: Recording) -> dict:
+    """Capture measures (JSON-ready, units in the keys): first-contact and leave times,
+    peak nodes in contact and wrap, the debris' spin change, the largest rise of the
+    mechanical energy above its start plus the winches' work (:func:`energy`,
+    :func:`winch_work`; a sound run has none), the outcome (:func:`capture_outcome`:
+    ``outcome``, ``outcome_time_s`` when decided and ``outcome_since_s`` when its condition
+    began, -1 while undecided, and ``outcome_reason``), the highest capture quality, and the
+    time series."""
+    count = nodes_in_contact(rec)
+    wrapped = wrap(rec)
+    k = int(np.argmax(wrapped))
+    total = energy(rec)
+    scores, judged = capture_outcome(rec)
+    best = int(np.argmax(scores[:, 2]))
+    return {
+        "first_contact_s": first_contact_time(rec),
+        "first_self_contact_s": (float(rec.attrs["first_self_contact_s"])
+                                 if rec.attrs.get("first_self_contact_s", -1) >= 0 else None),
+        "leave_s": leave_time(rec),
+        "max_nodes_in_contact": int(count.max()),
+        "max_wrap": float(wrapped[k]), "max_wrap_time_s": float(rec.time[k]),
+        "spin": spin(rec),
+        "max_energy_gain_J": float(np.max(total - total[0] - winch_work(rec))),
+        "outcome": judged.outcome, "outcome_time_s": judged.time,
+        "outcome_since_s": judged.since, "outcome_reason": judged.reason,
+        "max_capture_quality": float(scores[best, 2]),
+        "max_capture_quality_time_s": float(rec.time[best]),
+        "nodes_in_contact": count.astype(int).tolist(),
+        "normal_force_N": rec.contacts["normal_force"].tolist(),
+        "wrap": wrapped.tolist(),
+        "enclosed_fraction": scores[:, 0].tolist(),
+        "mouth_opening": scores[:, 1].tolist(),
+        "capture_quality": scores[:, 2].tolist(),
+    }

@@ -1,0 +1,1 @@
+"""The ``bulletnet`` command line."""

@@ -1,0 +1,1 @@
+"""Leaves every layer uses: errors, package data, numba's cache."""

@@ -1,1 +1,0 @@
-"""Force kernels, written once and used by every engine (fast, bullet, reference)."""

@@ -1,0 +1,2 @@
+"""Compiled leaves: the forces of threads, bending springs and cables, contact laws, geometry
+queries."""

@@ -1,0 +1,1 @@
+"""The HDF5 recording: its writer and its reader."""

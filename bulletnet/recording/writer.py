@@ -1,0 +1,259 @@
+"""HDF5 recordings, written while the run goes.
+
+Layout (``format_version`` 1; every dataset has a ``units`` attribute):
+
+========================  ============  =====================================================
+path                      shape         meaning
+========================  ============  =====================================================
+/time                     (T,)          sample times [s]
+/nodes/position           (T, N, 3)     node positions [m]
+/nodes/velocity           (T, N, 3)     node velocities [m/s]
+/nodes/mass               (N,)          node masses [kg]
+/nodes/radius             (N,)          node sphere radii [m]
+/nodes/kind               (N,)          0 inner, 1 edge, 2 corner, 3 corner mass,
+                                        4 tether, 5 chaser [-]
+/threads/pairs            (P, 2)        end nodes i -> j, 0-based [-]
+/threads/rest_length      (P,)          l_0 [m]
+/threads/stiffness        (P,)          k_a [N/m]
+/threads/damping          (P,)          c_a [N s/m]
+/threads/tension          (T, P)        axial tension, 0 when slack [N]
+/threads/shear            (T, P)        transverse (shear) force magnitude, 0 without bending [N]
+/nodes/orientation        (T, N, 4)     unit quaternions x, y, z, w [-] (bending only)
+/nodes/angular_velocity   (T, N, 3)     world frame [rad/s] (bending only)
+/debris/position          (T, 3)        world position of the body-frame origin (as the
+                                        asset defines it) [m] (scenes with debris)
+/debris/orientation       (T, 4)        body-frame quaternion x, y, z, w [-]
+/debris/velocity          (T, 3)        velocity of the centre of mass [m/s]
+/debris/angular_velocity  (T, 3)        world frame [rad/s]
+/debris/mesh_vertices     (V, 3)        visual mesh, every part at its pose, body frame [m]
+/debris/mesh_faces        (F, 3)        its triangles (vertex indices) [-]
+/debris/interior_samples  (M, 3)        points drawn uniformly inside the debris, body
+                                        frame [m]: the capture score's sample
+                                        (:func:`bulletnet.analysis.capture_score.interior_samples`)
+/contacts/count           (T,)          nodes that touched the debris in the interval
+                                        ending at the frame [-] (scenes with contact)
+/contacts/normal_force    (T,)          total normal force on the debris, mean over
+                                        that interval [N]
+/contacts/node_force      (T, N)        each node's debris normal force, mean over the
+                                        interval [N] (> 0: the node touched)
+/contacts/self_count      (T,)          nodes that touched another node in the interval [-]
+/cables/nodes             (V,)          closing-cable vertices' nodes, cable after cable [-]
+                                        (scenes with a closing mechanism)
+/cables/start             (C + 1,)      first vertex of each cable, then V [-]
+/cables/rigidity          (C,)          E A [N]
+/cables/tension           (T, C)        cable tension, 0 when slack [N]
+/cables/length            (T, C)        length along the cable's polyline [m]
+/cables/rest_length       (T, C)        rest length, shortened by the winch [m]
+/cables/work              (T, C)        work done by the cable's winch so far [J]
+========================  ============  =====================================================
+
+Contact forces are means over the record interval (impulse / interval): an impact lasts
+microseconds and a sample at the frame time would miss it.
+
+Root attributes: ``scenario`` (the TOML as run, overrides applied), ``engine``,
+``integrator``, ``dt`` [s], ``record_rate`` [Hz], ``bending``, ``status`` (running /
+completed / interrupted / diverged), ``message``, ``wall_time_s`` [s], ``bulletnet_version``,
+``format_version``, ``nodes_per_side``; with contact ``first_contact_s`` and
+``first_self_contact_s`` [s] (to the step; -1: none); with ``[outcome]`` on, ``outcome``
+(captured, escaped, missed or undecided), ``outcome_time_s``, when it was decided [s]
+(-1: undecided), and ``outcome_reason``, why in words
+(:data:`bulletnet.analysis.capture_score.REASONS`; recordings before it lack it). ``/debris``
+carries
+``mass`` [kg], ``inertia`` [kg m^2] (3, 3) about the centre of mass and ``center_of_mass`` [m]
+(body frame).
+
+The file is written as ``NAME.part`` in SWMR mode. Frames are kept in memory and written,
+one block per dataset, after the first frame and then every ``flush_interval`` seconds of
+wall time (a resize and a write per dataset and frame cost ~1 ms a frame), and the file is
+renamed to ``NAME`` when the run ends however it ends. After a hard kill the ``.part`` file
+still opens (``h5py.File(path, "r", swmr=True)``, or :func:`bulletnet.open_recording`) and
+holds every frame up to the last flush, with status ``running``.
+"""
+
+from __future__ import annotations
+
+import os
+import time as _time
+from pathlib import Path
+
+import numpy as np
+
+from ..common.errors import RecordingError
+from ..model.net import NetModel
+from ..model.state import NetState
+
+FORMAT_VERSION = 1
+FLUSH_INTERVAL_S = 1.0
+"""Default wall-clock interval between flushes to disk [s]."""
+
+STATUSES = ("running", "completed", "interrupted", "diverged")
+
+
+def _reason(exc: OSError) -> str:
+    """An OS error in a few words (``No such file or directory``), without HDF5's detail."""
+    return os.strerror(exc.errno) if exc.errno else str(exc)
+
+
+class Recorder:
+    """Append frames of a run to an HDF5 file; use as a context manager or call :meth:`close`.
+    The file's folder is created if it does not exist."""
+
+    def __init__(self, path: str | os.PathLike, model: NetModel, attrs: dict,
+                 oriented: bool = False, flush_interval: float = FLUSH_INTERVAL_S,
+                 debris=None, contact: bool = False,
+                 interior_samples: np.ndarray | None = None):
+        import h5py
+
+        self.path = Path(path)
+        self.part_path = self.path.with_name(self.path.name + ".part")
+        self.flush_interval = flush_interval
+        self.frames = 0
+        """Frames appended so far (written or pending) [-]."""
+        self._pending: dict[str, list] = {}
+        """Frames not yet written, per series."""
+        n, p = model.node_count, model.thread_count
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise RecordingError(f"{self.path}: cannot create its folder {self.path.parent}: "
+                                 f"{_reason(exc)}") from None
+        try:
+            f = h5py.File(self.part_path, "w", libver="latest")
+        except OSError as exc:
+            raise RecordingError(f"{self.path}: cannot write the recording: "
+                                 f"{_reason(exc)}") from None
+        self._file = f
+        for key, value in attrs.items():
+            f.attrs[key] = value
+        f.attrs["status"] = "running"
+        f.attrs["message"] = ""
+        f.attrs["format_version"] = FORMAT_VERSION
+        f.attrs["nodes_per_side"] = model.nodes_per_side
+
+        def static(name, data, units):
+            f.create_dataset(name, data=data).attrs["units"] = units
+
+        def growing(name, shape, units):
+            ds = f.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape),
+                                  chunks=(16, *shape), dtype="f8")
+            ds.attrs["units"] = units
+            return ds
+
+        static("nodes/mass", model.mass, "kg")
+        static("nodes/radius", model.radius, "m")
+        static("nodes/kind", model.kind, "1")
+        static("threads/pairs", model.pairs, "1")
+        static("threads/rest_length", model.rest_length, "m")
+        static("threads/stiffness", model.axial_stiffness, "N/m")
+        static("threads/damping", model.axial_damping, "N*s/m")
+        self._series = {
+            "time": growing("time", (), "s"),
+            "position": growing("nodes/position", (n, 3), "m"),
+            "velocity": growing("nodes/velocity", (n, 3), "m/s"),
+            "tension": growing("threads/tension", (p,), "N"),
+            "shear": growing("threads/shear", (p,), "N"),
+        }
+        if oriented:
+            self._series["orientation"] = growing("nodes/orientation", (n, 4), "1")
+            self._series["angular_velocity"] = growing("nodes/angular_velocity", (n, 3),
+                                                       "rad/s")
+        self.debris = debris
+        if debris is not None:
+            from ..model.debris import visual_mesh
+
+            vertices, faces = visual_mesh(debris)
+            static("debris/mesh_vertices", vertices, "m")
+            static("debris/mesh_faces", faces, "1")
+            if interior_samples is not None:
+                static("debris/interior_samples", interior_samples, "m")
+            group = f["debris"]
+            group.attrs["mass"] = debris.mass
+            group.attrs["inertia"] = debris.inertia
+            group.attrs["center_of_mass"] = debris.center_of_mass
+            group.attrs["units"] = "mass: kg, inertia: kg*m^2, center_of_mass: m"
+            group.attrs["name"] = debris.name
+            for name, shape, units in (("position", (3,), "m"), ("orientation", (4,), "1"),
+                                       ("velocity", (3,), "m/s"),
+                                       ("angular_velocity", (3,), "rad/s")):
+                self._series["debris_" + name] = growing("debris/" + name, shape, units)
+        if model.cable_count:
+            static("cables/nodes", model.cable_nodes, "1")
+            static("cables/start", model.cable_start, "1")
+            static("cables/rigidity", model.cable_rigidity, "N")
+            for name, units in (("tension", "N"), ("length", "m"), ("rest_length", "m"),
+                                ("work", "J")):
+                self._series["cable_" + name] = growing("cables/" + name, (model.cable_count,),
+                                                        units)
+        if contact:
+            self._series["contact_count"] = growing("contacts/count", (), "1")
+            self._series["contact_force"] = growing("contacts/normal_force", (), "N")
+            self._series["contact_node_force"] = growing("contacts/node_force", (n,), "N")
+            self._series["contact_self_count"] = growing("contacts/self_count", (), "1")
+        f.swmr_mode = True
+        self._last_flush = _time.monotonic()
+
+    def append(self, state: NetState, tension: np.ndarray, shear: np.ndarray,
+               contacts: dict | None = None, cables: dict | None = None) -> None:
+        """Add one frame: the state, thread tensions and shear forces (P,) [N], the
+        contact forces since the last frame (``node_force``, ``self_force`` (N,) [N], as
+        :meth:`bulletnet.engines.base.Engine.contact_loads` gives them) and the closing
+        cables (as :meth:`~bulletnet.engines.base.Engine.cable_loads` gives them)."""
+        values = {"time": state.time, "position": state.position, "velocity": state.velocity,
+                  "tension": tension, "shear": shear,
+                  "orientation": state.orientation, "angular_velocity": state.angular_velocity}
+        if self.debris is not None:
+            from ..model.debris import body_origin
+
+            values.update(debris_position=body_origin(state.debris, self.debris),
+                          debris_orientation=state.debris[3:7],
+                          debris_velocity=state.debris[7:10],
+                          debris_angular_velocity=state.debris[10:13])
+        if contacts is not None:
+            values.update(contact_count=np.count_nonzero(contacts["node_force"]),
+                          contact_force=contacts["node_force"].sum(),
+                          contact_node_force=contacts["node_force"],
+                          contact_self_count=np.count_nonzero(contacts["self_force"]))
+        if cables is not None:
+            values.update({"cable_" + k: v for k, v in cables.items()})
+        for name in self._series:
+            self._pending.setdefault(name, []).append(np.array(values[name], dtype=float))
+        self.frames += 1
+        if self.frames == 1 or _time.monotonic() - self._last_flush >= self.flush_interval:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write every frame so far to disk (readable after a hard kill)."""
+        for name, ds in self._series.items():
+            frames = self._pending.pop(name, [])
+            if frames:
+                k = ds.shape[0]
+                ds.resize(k + len(frames), axis=0)
+                ds[k:] = np.stack(frames)
+            ds.flush()
+        self._last_flush = _time.monotonic()
+
+    def close(self, status: str, message: str = "", **attrs) -> Path:
+        """Flush, mark the run with ``status``, close and rename to the final path."""
+        import h5py
+
+        assert status in STATUSES
+        if self._file is None:
+            return self.path
+        self.flush()
+        self._file.close()
+        self._file = None
+        with h5py.File(self.part_path, "r+") as f:
+            f.attrs["status"] = status
+            f.attrs["message"] = message
+            for key, value in attrs.items():
+                f.attrs[key] = value
+        os.replace(self.part_path, self.path)
+        return self.path
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if self._file is not None:
+            self.close("interrupted" if exc_type else "completed",
+                       f"{exc_type.__name__}: {exc}" if exc_type else "")

@@ -1,0 +1,1 @@
+"""The run loop: stepping an engine, recording, the outcome, compiling ahead, profiling."""

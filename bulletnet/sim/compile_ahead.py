@@ -1,0 +1,99 @@
+"""A first run's compilation on both cores.
+
+The first run of a scene compiles groups of kernels that do not depend on each other: the
+threads' step (the implicit solver), the bending springs, the contact stage (the Verlet
+list, the debris' signed distance, the contact laws). numba compiles in the process that
+calls, holding the interpreter, so one process compiles them one after the other.
+:func:`compile_ahead` has a second process compile the groups other than the step that
+numba's cache lacks (into the same folder: :mod:`bulletnet.common.kernel_cache`) while this one
+compiles the step; the compiled loop then loads them all. If the cache holds those groups,
+or the second process fails, nothing changes but the time: each process compiles exactly
+what a run would (the same kernels for the same argument types), so the results are the
+same.
+
+    python -m bulletnet.sim.compile_ahead SCENE.toml GROUP ...   # the second process
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numba as nb
+
+HELPER_TIMEOUT_S = 600.0
+"""Longest wait for the second process [s]; past it this process compiles on its own."""
+
+
+def signature(args: tuple) -> tuple:
+    """numba's argument types of a call with ``args``, as a dispatcher types a call."""
+    return tuple(nb.typeof(a) for a in args)
+
+
+def is_cached(dispatcher, args: tuple) -> bool:
+    """Whether the dispatcher's compiled code for ``args`` is loaded or in numba's cache."""
+    sig = signature(args)
+    if sig in dispatcher.overloads:
+        return True
+    # what Dispatcher.compile tries first (numba has no public call for it)
+    return dispatcher._cache.load_overload(sig, dispatcher.targetctx) is not None
+
+
+def compile_group(calls: list[tuple]) -> None:
+    """Compile (or load) each (dispatcher, args) of a group for its arguments' types."""
+    for dispatcher, args in calls:
+        dispatcher.compile(signature(args))
+
+
+def compile_ahead(scenario, engine, state) -> None:
+    """Compile the engine's kernel groups for ``state`` on two cores when numba's cache lacks
+    any group besides the step (see the module doc); otherwise do nothing (the run compiles
+    or loads as usual)."""
+    groups = engine.kernel_groups(state)
+    missing = [name for name, calls in groups.items() if name != "step"
+               and not all(is_cached(d, a) for d, a in calls)]
+    if not missing:
+        return
+    from ..model.scenario import to_toml
+
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = Path(tmp) / "scene.toml"
+        scene.write_text(to_toml(scenario), encoding="utf-8")
+        helper = subprocess.Popen([sys.executable, "-m", "bulletnet.sim.compile_ahead", str(scene),
+                                   *missing], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL)
+        try:
+            compile_group(groups["step"])
+            helper.wait(timeout=HELPER_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            pass  # this process compiles what is left, as the run goes
+        finally:
+            if helper.poll() is None:  # timed out, or this process was interrupted
+                helper.kill()
+                helper.wait()
+
+
+def main(argv: list[str]) -> int:
+    """The second process: build the scene's engine (``argv[0]``: its TOML) and compile the
+    named kernel groups (``argv[1:]``)."""
+    from ..engines import make_engine
+    from ..model.builder import build_model, initial_state
+    from ..model.scenario import load
+
+    scenario = load(argv[0])
+    model = build_model(scenario)
+    state = initial_state(scenario, model)
+    engine = make_engine(scenario, model)
+    try:
+        groups = engine.kernel_groups(state)
+        for name in argv[1:]:
+            compile_group(groups.get(name, []))
+    finally:
+        engine.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

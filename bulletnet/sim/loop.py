@@ -1,0 +1,273 @@
+"""Run a scene: scenario -> model -> engine -> recorder."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import signal
+import threading
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..analysis.capture_score import OutcomeMonitor, ScoreGeometry, interior_samples, wrap_fraction
+from ..analysis.stability import Limits, analytical_limits
+from ..common.errors import BulletnetError, DivergenceError, ScenarioError
+from ..engines import make_engine
+from ..model.builder import build_model, initial_state
+from ..model.debris import body_origin
+from ..model.scenario import Scenario, to_toml
+from ..model.state import NetState
+from ..recording.writer import Recorder
+from .compile_ahead import compile_ahead
+from .profiling import Profile, instrument, step_split
+
+MAX_RECORDING_BYTES = 2e9
+"""Recordings estimated larger than this [bytes] need ``force`` (or a lower record rate)."""
+
+Progress = Callable[[float, float, float], None]
+"""Called after each recorded frame with (simulated time [s], duration [s], wall time [s])."""
+
+
+@dataclass
+class RunResult:
+    path: Path | None
+    """The recording written, if any."""
+    status: str
+    """completed, interrupted or diverged."""
+    state: NetState
+    """The last state reached."""
+    wall_time_s: float
+    """Wall-clock time of the integration [s]."""
+    stats: dict
+    """Engine counters (steps, solver iterations)."""
+    frames: int
+    """Frames recorded [-]."""
+    outcome: str = ""
+    """The capture's outcome in a scene with ``[outcome]`` on (captured, escaped, missed or
+    undecided; :class:`~bulletnet.analysis.capture_score.OutcomeMonitor`); "" otherwise."""
+    outcome_time_s: float = -1.0
+    """When the outcome was decided [s]; -1 if undecided or not judged."""
+    outcome_reason: str = ""
+    """Why, in words (:data:`bulletnet.analysis.capture_score.REASONS`); "" if not judged."""
+
+
+def frame_times(duration: float, record_rate: float) -> np.ndarray:
+    """Sample times [s]: every 1 / record_rate from 0, plus ``duration`` itself, shape (T,)."""
+    count = math.floor(duration * record_rate + 1e-9)
+    times = np.arange(count + 1) / record_rate
+    if duration - times[-1] > 1e-9 * max(1.0, duration):
+        times = np.append(times, duration)
+    return times
+
+
+def recording_bytes(scenario: Scenario, model) -> float:
+    """Estimated size of a run's recording [bytes]: float64 series per frame (time, positions,
+    velocities, tensions, shear forces; orientations and angular velocities with bending;
+    debris pose and velocities, and contact forces, in scenes that have them)."""
+    n, p = model.node_count, model.thread_count
+    per_frame = (1 + 6 * n + 2 * p + (7 * n if scenario.bending.enabled else 0)
+                 + (13 if scenario.debris.asset else 0)
+                 + (n + 3 if scenario.contact.enabled else 0))
+    frames = frame_times(scenario.scene.duration, scenario.simulation.record_rate).size
+    return 8.0 * per_frame * frames
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """Ignore SIGINT and SIGTERM inside the block (a second Ctrl-C while the recording is
+    being closed must not leave it half written); a no-op off the main thread."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    saved = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
+def speed_limit(s: Scenario, state: NetState) -> float:
+    """Node speed [m/s] above which a run is taken to have diverged: 100 times the largest
+    speed the scene can explain (initial speeds plus free fall over the whole duration)."""
+    g = float(np.linalg.norm(s.scene.gravity))
+    v0 = float(np.linalg.norm(state.velocity, axis=1).max())
+    return 100.0 * (v0 + g * s.scene.duration + 1.0)
+
+
+def _check(state: NetState, limit: float) -> str:
+    """Why ``state`` has diverged (non-finite, or a node faster than ``limit`` [m/s]), or "".
+    A diverging state's speeds may overflow (inf): that is the finding, not a warning."""
+    if not np.isfinite(state.position).all() or not np.isfinite(state.velocity).all():
+        return "non-finite state"
+    with np.errstate(over="ignore"):
+        vmax = float(np.linalg.norm(state.velocity, axis=1).max())
+    if vmax > limit:
+        return f"a node moves at {vmax:.3g} m/s (limit {limit:.3g} m/s)"
+    return ""
+
+
+def _divergence(reason: str, state: NetState, dt: float, integrator: str,
+                limits: Limits) -> DivergenceError:
+    """The typed error of a diverged run, naming the step and the analytical limit (an
+    adaptive run, ``dt`` 0, has none)."""
+    if dt <= 0:
+        return DivergenceError(f"diverged at t = {state.time:.6g} s: {reason} with the "
+                               "adaptive reference engine", state.time)
+    return DivergenceError(
+        f"diverged at t = {state.time:.6g} s: {reason} with step {dt:.3g} s; "
+        f"{limits.describe(integrator)}; use a smaller --dt or the implicit_euler integrator",
+        state.time, step=dt, limit=limits.for_integrator(integrator))
+
+
+def preflight(scenario: Scenario, out: str | os.PathLike | None, force: bool = False):
+    """Check a run before it starts (existing output, recording size); return its model."""
+    if out is not None and Path(out).exists() and not force:
+        raise ScenarioError(f"{out}: exists; pass --force (force=True) to overwrite it")
+    model = build_model(scenario)
+    if out is not None and not force:
+        size = recording_bytes(scenario, model)
+        if size > MAX_RECORDING_BYTES:
+            raise ScenarioError(
+                f"{out}: the recording would take about {size / 1e9:.1f} GB; lower "
+                "--record-rate or pass --force")
+    return model
+
+
+def warm_up(scenario: Scenario) -> float:
+    """Compile the kernels a run of ``scenario`` uses, or load them from numba's cache: one
+    record interval, recorded to a temporary file (recording uses kernels of its own).
+    Returns its wall time [s]. A run that diverges in it has compiled them all the same."""
+    import tempfile
+
+    start = _time.perf_counter()
+    short = scenario.with_overrides({"scene.duration": 1.0 / scenario.simulation.record_rate})
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            run(short, Path(tmp) / "warm_up.h5")
+        except BulletnetError:
+            pass
+    return _time.perf_counter() - start
+
+
+def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
+        progress: Progress | None = None, force: bool = False,
+        profile: Profile | None = None) -> RunResult:
+    """Simulate ``scenario``; record to ``out`` (HDF5) if given; with ``profile``, time the
+    run's sections into it (:mod:`bulletnet.sim.profiling`).
+
+    An existing ``out``, or a recording estimated above :data:`MAX_RECORDING_BYTES`, is an
+    error unless ``force``. On Ctrl-C the recording is closed with
+    status ``interrupted`` and KeyboardInterrupt is re-raised; on divergence with status
+    ``diverged`` and :class:`DivergenceError` is re-raised. Every frame so far is kept.
+    With ``[outcome]`` on, each frame is judged (:mod:`bulletnet.analysis.capture_score`) and the
+    recording gets ``outcome`` and ``outcome_time_s``; with ``stop_when_decided`` the run
+    ends, ``completed``, at the frame that decides it."""
+    model = preflight(scenario, out, force)
+    state = initial_state(scenario, model)
+    engine = make_engine(scenario, model)
+    compile_ahead(scenario, engine, state)  # a first run with contact: on both cores
+    times = frame_times(scenario.scene.duration, scenario.simulation.record_rate)
+    samples = None if engine.debris is None else interior_samples(engine.debris)
+    monitor = (OutcomeMonitor(scenario.outcome, ScoreGeometry.of(
+        model, samples, engine.debris.center_of_mass)) if scenario.outcome.enabled else None)
+    recorder = None
+    if out is not None:
+        recorder = Recorder(out, model, {
+            "scenario": to_toml(scenario),
+            "engine": engine.name,
+            "integrator": engine.integrator,
+            "dt": engine.dt,
+            "record_rate": scenario.simulation.record_rate,
+            "bending": scenario.bending.enabled,
+            "bulletnet_version": _version(),
+        }, oriented=state.oriented, debris=engine.debris, interior_samples=samples,
+            contact=scenario.contact.enabled)
+
+    wrap_trigger = scenario.closing.enabled and scenario.closing.trigger == "wrap"
+
+    def take_frame() -> bool:
+        """Start the winches if the wrap trigger is reached, record the frame just reached and
+        show it to the monitor; True: the run stops here (its outcome is decided and the scene
+        asks to stop then)."""
+        contacts = engine.contact_loads()
+        if wrap_trigger and not engine.winches_started and wrap_fraction(
+                state.position, model.nodes_per_side,
+                state.debris[:3]) >= scenario.closing.trigger_wrap:
+            engine.start_winches(state.time)
+        if recorder is not None:
+            recorder.append(state, *engine.thread_loads(state), contacts,
+                            engine.cable_loads())
+        if monitor is None:
+            return False
+        monitor.observe(state.time, state.position, state.velocity,
+                        body_origin(state.debris, engine.debris), state.debris[3:7],
+                        state.debris[7:10], int(np.count_nonzero(contacts["node_force"])))
+        return monitor.decided and scenario.outcome.stop_when_decided
+
+    stop = take_frame()
+    if profile is not None:
+        instrument(profile, engine, recorder, monitor)
+    limit = speed_limit(scenario, state)
+    start_position = state.position.copy()
+    status, message, error = "running", "", None
+    start = _time.perf_counter()
+    try:
+        for t in times[1:]:
+            if stop:
+                break
+            engine.advance(state, float(t))
+            reason = _check(state, limit)
+            if reason:
+                raise _divergence(reason, state, engine.dt, engine.integrator,
+                                  analytical_limits(model, start_position,
+                                                    scenario.bending.enabled))
+            stop = take_frame()
+            if progress is not None:
+                progress(state.time, scenario.scene.duration, _time.perf_counter() - start)
+        status = "completed"
+    except KeyboardInterrupt as exc:
+        status, message, error = "interrupted", "interrupted by the user", exc
+    except DivergenceError as exc:
+        status, message, error = "diverged", str(exc), exc
+    finally:
+        wall = _time.perf_counter() - start
+        if status == "running":  # an unexpected error: keep the frames, say so
+            status, message = "interrupted", "stopped by an internal error"
+        stats = engine.stats()
+        first = engine.contact_loads()["first_contact"]
+        outcome_attrs = {}
+        if monitor is not None:
+            monitor.finish(status == "completed")
+            outcome_attrs = {"outcome": monitor.outcome, "outcome_time_s": monitor.time,
+                             "outcome_reason": monitor.reason}
+        if profile is not None:
+            profile.stop()
+            if status == "completed":
+                profile.split = step_split(engine, state)
+        engine.close()
+        path = None
+        frames = 0
+        if recorder is not None:
+            frames = recorder.frames
+            with _signals_deferred():
+                contact_attrs = ({"first_contact_s": first[0], "first_self_contact_s": first[1]}
+                                 if scenario.contact.enabled else {})
+                path = recorder.close(status, message, wall_time_s=wall, **contact_attrs,
+                                      **outcome_attrs,
+                                      **{f"stats_{k}": v for k, v in stats.items()})
+    if error is not None:
+        raise error
+    return RunResult(path=path, status=status, state=state, wall_time_s=wall, stats=stats,
+                     frames=frames, **outcome_attrs)  # the recording's outcome attributes
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return __version__

@@ -1,0 +1,208 @@
+"""Where a run's time goes (``bulletnet run --profile``).
+
+Two honest measurements, both off unless asked for:
+
+1. **Sections of the run loop**, timed from outside: the engine's ``advance`` (forces and
+   integration, fused in one compiled loop), ``thread_loads`` (the tensions recorded each
+   frame), the recorder's ``append`` and its HDF5 ``flush``, and the outcome monitor's
+   ``observe`` (the capture score of each frame, scenes with ``[outcome]`` on). :meth:`Profile.wrap`
+   replaces those methods on the instances for the run, each section timed exclusive of the
+   sections it calls (a flush inside an append counts as I/O, not recording).
+2. **The split inside the compiled step**, from a short calibration after the run on a copy
+   of its last state: the same number of steps timed as the force kernels alone (gravity,
+   loads, axial threads, bending on its multirate schedule) and as full engine steps, three
+   times interleaved; the engine time is shared out between forces and integration in the
+   median ratio. With contact, full steps with the contact stage switched off are timed too
+   (interleaved the same way), and the difference is the contact's share.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numba as nb
+
+from ..kernels.axial import axial_forces
+from ..model.state import NetState
+from ..solver import grid as grid_kernels
+from ..solver.integrators import bending_weight, external_forces
+
+CALIBRATION_S = 0.4
+"""Target wall time of each kind of calibration loop, all pairs together [s]."""
+PAIRS = 3
+"""Interleaved (forces, full steps) timings of the calibration; the median ratio is used, so a
+moment of load on a shared machine does not skew the split."""
+
+
+class Profile:
+    """Exclusive wall time [s] of named sections of a run."""
+
+    def __init__(self):
+        self.seconds: dict[str, float] = {}
+        """Section name -> exclusive wall time [s]."""
+        self.active = True
+        """Whether calls are timed (:meth:`stop` ends the profile: a run's final close is not
+        part of its loop)."""
+        self.split: dict | None = None
+        """The calibrated split of the engine step (:func:`step_split`), once measured."""
+        self._inner = 0.0
+
+    def stop(self) -> None:
+        """Stop timing the wrapped methods."""
+        self.active = False
+
+    def wrap(self, obj, method: str, section: str) -> None:
+        """Time every call of ``obj.method`` into ``section`` from now on (instance only)."""
+        call = getattr(obj, method)
+
+        def timed(*args, **kwargs):
+            if not self.active:
+                return call(*args, **kwargs)
+            outer, self._inner = self._inner, 0.0
+            start = time.perf_counter()
+            try:
+                return call(*args, **kwargs)
+            finally:
+                elapsed = time.perf_counter() - start
+                self.seconds[section] = (self.seconds.get(section, 0.0) + elapsed
+                                         - self._inner)
+                self._inner = outer + elapsed
+
+        setattr(obj, method, timed)
+
+
+ENGINE = "engine step"
+LOADS = "thread loads (recorded tensions)"
+RECORDING = "recording (HDF5 append)"
+IO = "I/O (HDF5 flush)"
+OUTCOME = "capture score (outcome monitor)"
+
+
+def instrument(profile: Profile, engine, recorder, monitor=None) -> None:
+    """Time the run's sections (see the module doc) on these instances."""
+    profile.wrap(engine, "advance", ENGINE)
+    profile.wrap(engine, "thread_loads", LOADS)
+    if recorder is not None:
+        profile.wrap(recorder, "append", RECORDING)
+        profile.wrap(recorder, "flush", IO)
+    if monitor is not None:
+        profile.wrap(monitor, "observe", OUTCOME)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _force_loop(steps, every, pos, vel, quat, omega, model, work, gravity, external, grid,
+                views):
+    """The force kernels of ``steps`` steps on a fixed state, bending on its schedule
+    (``quat`` None: no bending): the grid's (``grid`` not None; pos and vel its views) or the
+    pair list's."""
+    for _ in range(steps):
+        weight = 0.0
+        if quat is not None:
+            weight = bending_weight(True, every, work)
+        if grid is not None:
+            if quat is not None:
+                if weight > 0.0:
+                    grid_kernels.bending(grid, views, work.torque)
+            grid_kernels.thread_forces(grid, views)
+        else:
+            external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
+                            False)
+            axial_forces(pos, vel, model.pairs, model.rest, model.k_a, model.c_a,
+                         model.bilateral, work.force, work.tension)
+        work.step_count[0] += 1
+
+
+def _seconds(run: Callable[[], None]) -> float:
+    start = time.perf_counter()
+    run()
+    return time.perf_counter() - start
+
+
+def step_split(engine, state: NetState) -> dict | None:
+    """Calibrated share of the force kernels in one engine step, or None for an engine without
+    fixed steps. Returns ``{"steps", "force_s_per_step", "step_s_per_step"}`` [-, s, s]: the
+    median-ratio pair of :data:`PAIRS` interleaved timings."""
+    if engine.steps == 0 or engine.dt <= 0:
+        return None
+    from ..solver.integrators import workspace
+
+    work = workspace(engine.model.node_count, engine.model.thread_count)
+    quat, omega = engine.rotations(state)
+
+    def advance(steps):
+        copy = state.copy()
+        engine.advance(copy, copy.time + steps * engine.dt)
+
+    grid = getattr(engine, "grid", None)
+    if grid is not None:  # the grid's force kernels, on its rows (they hold the last state)
+        views = engine.views
+        pos, vel = views.position, views.velocity
+    else:
+        views = None
+        pos, vel = state.position.copy(), state.velocity.copy()
+    if quat is not None:
+        quat, omega = quat.copy(), omega.copy()
+
+    def forces(steps):
+        _force_loop(steps, engine.bending_every, pos, vel, quat, omega, engine.arrays, work,
+                    engine.gravity, engine.external, grid, views)
+
+    flags = engine.contact.arrays.flags
+    saved = flags.copy()
+
+    def without_contact(steps):
+        flags[:] = False
+        try:
+            advance(steps)
+        finally:
+            flags[:] = saved
+
+    forces(1)  # warm
+    advance(1)
+    per_step = _seconds(lambda: advance(100)) / 100
+    steps = max(100, int(CALIBRATION_S / PAIRS / max(per_step, 1e-9)))
+    timings = sorted(((_seconds(lambda: forces(steps)), _seconds(lambda: advance(steps)),
+                       _seconds(lambda: without_contact(steps)) if saved.any() else 0.0)
+                      for _ in range(PAIRS)), key=lambda t: t[0] / t[1])
+    force_s, step_s, free_s = timings[PAIRS // 2]
+    out = {"steps": PAIRS * steps, "force_s_per_step": force_s / steps,
+           "step_s_per_step": step_s / steps}
+    if saved.any():
+        out["contact_s_per_step"] = max(0.0, step_s - free_s) / steps
+    return out
+
+
+def report(profile: Profile, total_s: float, contact: bool) -> list[str]:
+    """The profile as lines of text: seconds and share of ``total_s`` [s] (the run loop's wall
+    time) per section, the engine step shared out between forces and integration by the
+    calibrated split; ``contact`` says whether the scene has contact."""
+    split = profile.split
+    sections = dict(profile.seconds)
+    engine = sections.pop(ENGINE, 0.0)
+    rows = []
+    if split is not None:
+        share = min(1.0, split["force_s_per_step"] / split["step_s_per_step"])
+        touch = min(1.0 - share, split.get("contact_s_per_step", 0.0)
+                    / split["step_s_per_step"])
+        rows += [("forces (gravity, threads, bending)", engine * share),
+                 ("integration (velocity/position update, solver)",
+                  engine * (1 - share - touch))]
+        if contact:
+            rows.append(("contact (collision, normal law, friction)", engine * touch))
+    else:
+        rows.append((ENGINE + " (adaptive: not split)", engine))
+    rows += [(name, sections.get(name, 0.0)) for name in (LOADS, RECORDING, IO, OUTCOME)
+             if name != OUTCOME or OUTCOME in sections]
+    rows.append(("other (divergence checks, progress)",
+                 max(0.0, total_s - engine - sum(sections.values()))))
+    lines = [f"profile: {total_s:.3f} s wall in the run loop"]
+    for name, seconds in rows:
+        lines.append(f"  {name:<48} {seconds:9.3f} s  {100 * seconds / max(total_s, 1e-12):5.1f} %")
+    if split is not None:
+        lines.append(f"  (split of the engine step from {split['steps']} calibration steps: "
+                     f"forces {split['force_s_per_step'] * 1e6:.3g} us of "
+                     f"{split['step_s_per_step'] * 1e6:.3g} us a step)")
+    if not contact:
+        lines.append("  contact: none, the scene has no contact")
+    return lines

@@ -1,0 +1,699 @@
+"""The regular net's threads as stencils (Eq. 1) over a structure-of-arrays state.
+
+An Ns x Ns net's inner threads join row neighbours (node i -> i + 1, the "horizontal"
+threads h(i)) and column neighbours (i -> i + Ns, the "vertical" threads v(i)). Over
+contiguous index ranges, with x, y, z (and u, v, w) in separate rows, every such thread is the
+same arithmetic on shifted slices: the loops have no gathers and no scatter-adds, and numba
+emits packed vector instructions for them. Each thread's result (T e, or a block product) is
+stored once; each node then sums its four neighbours' entries, in the order in which the
+pair-list kernels add them (v(i - Ns), h(i - 1), h(i), v(i), then every other element), so the
+two paths give the same floating-point results, bit for bit.
+
+Everything that is not a grid thread (the corner threads, and any element added later) stays
+in the general pair-list kernels (:mod:`bulletnet.kernels.axial`), which read the same memory
+through (N, 3) views of the rows (:attr:`GridViews`). The contact stage and the bending
+springs read those views too.
+
+Layout: :class:`Grid` holds rows of length L >= N (N nodes, padded to a multiple of 8), all
+carved, with the threads' parameters, from one 64-byte aligned buffer (the placement of a
+separately allocated array changed the plain step's time by up to 12 % from run to run); thread
+rows have Ns leading zeros so that thread i - Ns and i - 1 of node i exist for every node,
+and the explicit step's thread loops run over whole vectors (padding threads, never taut).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import numba as nb
+import numpy as np
+
+from ..kernels.axial import (
+    add_block,
+    add_thread_blocks,
+    add_thread_rhs,
+    axial_forces,
+    axial_linearization,
+    block_product,
+    invert3,
+    tension_law,
+)
+from ..kernels.bending import (
+    angular_torque,
+    bending_forces,
+    relative_rotation_vector,
+    transverse_force,
+)
+from ..kernels.cable import (
+    CableArrays,
+    add_cable_blocks,
+    add_cable_product,
+    cable_forces,
+    clear_cable_nodes,
+)
+from ..model.net import NetModel
+from ..model.topology import thread_pairs
+
+ALIGN = 64
+"""Alignment of every row [bytes] (a cache line; a whole AVX-512 register)."""
+
+
+class Grid(NamedTuple):
+    """The grid threads' parameters and the structure-of-arrays state and scratch of a net of
+    Ns x Ns nodes, N nodes in all (the net, then the corner masses and any other nodes), and
+    Q other (pair-list) threads. Rows of node quantities have length L >= N, a multiple of 8
+    long enough for every padding thread's far node."""
+
+    ns: int
+    """Ns, nodes per side [-]."""
+    n: int
+    """Ns^2, the net's nodes [-]; nodes n .. N - 1 have no grid thread."""
+    count: int
+    """N, all nodes [-]."""
+    h_rest: np.ndarray
+    """Rest length of thread i -> i + 1 [m], shape (H,): H is Ns^2 - 1 rounded up to a
+    multiple of 8; +inf (never taut, every other parameter zero) at a row's end and on the
+    padding threads i >= Ns^2 - 1."""
+    h_k: np.ndarray
+    """Its axial stiffness [N/m], shape (H,)."""
+    h_c: np.ndarray
+    """Its axial damping [N s/m], shape (H,)."""
+    v_rest: np.ndarray
+    """Rest length of thread i -> i + Ns [m], shape (V,): V is Ns^2 - Ns rounded up to a
+    multiple of 8 (+inf on the padding threads)."""
+    v_k: np.ndarray
+    """Its axial stiffness [N/m], shape (V,)."""
+    v_c: np.ndarray
+    """Its axial damping [N s/m], shape (V,)."""
+    h_bend: np.ndarray
+    """Bending parameters of thread i -> i + 1 at column i: k_t [N/m], c_t [N s/m], k_b
+    [N m/rad], c_b [N m s/rad], rest axis in node i's frame (3) [-], shape (7, H)
+    (zero at a row's end and on the padding)."""
+    v_bend: np.ndarray
+    """The same for thread i -> i + Ns, shape (7, V)."""
+    o_pairs: np.ndarray
+    """The other threads' end nodes [-], shape (Q, 2), int64."""
+    o_rest: np.ndarray
+    """Their rest lengths [m], shape (Q,)."""
+    o_k: np.ndarray
+    """Their axial stiffness [N/m], shape (Q,)."""
+    o_c: np.ndarray
+    """Their axial damping [N s/m], shape (Q,)."""
+    mass: np.ndarray
+    """Node masses [kg], shape (L,) (zero on the padding columns N .. L - 1)."""
+    inv_mass: np.ndarray
+    """1 / mass [1/kg], shape (L,) (zero on the padding columns: they never move)."""
+    x: np.ndarray
+    """Positions [m], shape (3, L)."""
+    v: np.ndarray
+    """Velocities [m/s], shape (3, L)."""
+    q: np.ndarray
+    """Orientations, quaternions x, y, z, w [-], shape (4, L) (bending only)."""
+    w: np.ndarray
+    """Angular velocities [rad/s], shape (3, L) (bending only)."""
+    dv: np.ndarray
+    """Velocity increment of the last step [m/s], shape (3, L); CG's warm start."""
+    base: np.ndarray
+    """Gravity, loads and external forces, m g + load + external [N], shape (3, L)."""
+    bend: np.ndarray
+    """Bending forces of the last evaluation [N], shape (3, L)."""
+    other: np.ndarray
+    """Forces of the other threads [N], shape (3, L)."""
+    th: np.ndarray
+    """T e of thread h(i) at column Ns + i [N], shape (3, Ns + Ns^2)."""
+    tv: np.ndarray
+    """T e of thread v(i) at column Ns + i [N], shape (3, Ns + Ns^2)."""
+    eh: np.ndarray
+    """Unit direction of h(i) at column Ns + i [-], shape (3, Ns + Ns^2) (implicit Euler)."""
+    ev: np.ndarray
+    """Unit direction of v(i) [-], shape (3, Ns + Ns^2) (implicit Euler)."""
+    blocks: np.ndarray
+    """along, across of h(i), then of v(i), at column Ns + i [kg], shape (4, Ns + Ns^2):
+    the implicit-Euler block along - across on e e^T plus across on the identity."""
+    wh: np.ndarray
+    """A block of h(i) times its nodes' difference [kg m/s], shape (3, Ns + Ns^2)."""
+    wv: np.ndarray
+    """The same for v(i), shape (3, Ns + Ns^2)."""
+    cg: np.ndarray
+    """CG vectors r, z, d, A d [kg m/s, m/s, m/s, kg m/s], shape (4, 3, L)."""
+    block_inv: np.ndarray
+    """Inverse block-Jacobi preconditioner, row-major 3 x 3 per node [1/kg], shape (9, L)."""
+    o_tension: np.ndarray
+    """Tension of the other threads [N], shape (Q,)."""
+    o_along: np.ndarray
+    """Their implicit block along the thread [kg], shape (Q,)."""
+    o_across: np.ndarray
+    """Their implicit block across the thread [kg], shape (Q,)."""
+    o_axis: np.ndarray
+    """Their unit directions [-], shape (Q, 3)."""
+    o_bend: np.ndarray
+    """Their bending parameters k_t, c_t, k_b, c_b (as h_bend), shape (4, Q)."""
+    o_rest_axis: np.ndarray
+    """Their rest axes in their first node's frame [-], shape (Q, 3)."""
+    o_shear: np.ndarray
+    """Their shear force magnitude [N], shape (Q,)."""
+    bh: np.ndarray
+    """Bending of thread h(i) at column Ns + i: force on node i [N] (3), r x that force
+    [N m] (3), torque on node i [N m] (3), shape (9, Ns + Ns^2)."""
+    bv: np.ndarray
+    """The same for thread v(i), shape (9, Ns + Ns^2)."""
+    cables: CableArrays | None
+    """The closing cables (pair-list kernels on the views); None without."""
+
+
+class GridViews(NamedTuple):
+    """(N, 3) views of a grid's rows, for the pair-list kernels, the contact stage and the
+    bending springs (they write through to the rows)."""
+
+    position: np.ndarray
+    """Positions [m], shape (N, 3)."""
+    velocity: np.ndarray
+    """Velocities [m/s], shape (N, 3)."""
+    dv: np.ndarray
+    """Velocity increment of the last step [m/s], shape (N, 3)."""
+    bend: np.ndarray
+    """Bending forces [N], shape (N, 3)."""
+    other: np.ndarray
+    """Forces of the other threads [N], shape (N, 3)."""
+    r: np.ndarray
+    """CG residual [kg m/s], shape (N, 3)."""
+    d: np.ndarray
+    """CG search direction [m/s], shape (N, 3)."""
+    ad: np.ndarray
+    """The system times d [kg m/s], shape (N, 3)."""
+    quat: np.ndarray
+    """Orientations [-], shape (N, 4)."""
+    omega: np.ndarray
+    """Angular velocities [rad/s], shape (N, 3)."""
+    block_inv: np.ndarray
+    """Inverse block-Jacobi preconditioner, row-major 3 x 3 [1/kg], shape (N, 9)."""
+
+
+def applies(model: NetModel) -> bool:
+    """Whether ``model`` is a net the grid kernels cover: Eq. 1's threads first, tension-only,
+    nothing clamped (the cantilever beam and any other model take the pair-list path)."""
+    ns = model.nodes_per_side
+    inner = 2 * ns * (ns - 1)
+    return (ns >= 2 and not model.bilateral and not model.fixed.any()
+            and model.node_count >= ns * ns and model.thread_count >= inner
+            and np.array_equal(model.pairs[:inner], thread_pairs(ns)[:inner]))
+
+
+def _rows(total: int) -> int:
+    """Row length: ``total`` rounded up to a multiple of 8 float64 (64 bytes)."""
+    return -(-total // 8) * 8
+
+
+def _carve(shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
+    """Zeroed float64 arrays of ``shapes``, each starting on an :data:`ALIGN` boundary, all in
+    one allocation (their relative placement then does not change from run to run)."""
+    sizes = [_rows(int(np.prod(s))) for s in shapes]
+    buffer = np.zeros(sum(sizes) + ALIGN // 8)
+    start = (-buffer.ctypes.data % ALIGN) // 8
+    out = []
+    for shape, size in zip(shapes, sizes, strict=True):
+        out.append(buffer[start:start + int(np.prod(shape))].reshape(shape))
+        start += size
+    return out
+
+
+def build(model: NetModel, cables: CableArrays | None = None) -> Grid:
+    """The grid of a net that :func:`applies`: its threads' parameters rearranged by stencil
+    and zeroed state and scratch, and its closing ``cables`` (None: none)."""
+    ns, count, pairs, mass = model.nodes_per_side, model.node_count, model.pairs, model.mass
+    per_thread = np.vstack([  # rows: rest, k, c, then the bending parameters (h_bend)
+        model.rest_length, model.axial_stiffness, model.axial_damping,
+        model.transverse_stiffness, model.transverse_damping, model.bending_stiffness,
+        model.bending_damping, model.rest_axis.T])
+    n, inner = ns * ns, 2 * ns * (ns - 1)
+    o = np.ascontiguousarray(per_thread[:, inner:])
+    q = o.shape[1]
+    # thread rows padded to whole vectors (the stencils' loops then have no scalar remainder)
+    # with threads that are never taut, as is the thread at a row's end: rest +inf, all else 0
+    h_count, v_count = _rows(max(n - 1, 0)), _rows(n - ns)
+    length = _rows(max(count, h_count + 1, v_count + ns))
+    wide = ns + length
+    (h, v, masses, x, vel, dv, base, bend, other, th, tv, eh, ev, blocks, wh, wv, cg, block_inv,
+     o_axis, bh, bv, quat, omega) = _carve(
+        [(10, h_count), (10, v_count), (2, length)] + [(3, length)] * 6 + [(3, wide)] * 4
+        + [(4, wide), (3, wide), (3, wide), (4, 3, length), (9, length), (q, 3), (9, wide),
+           (9, wide), (4, length), (3, length)])
+    h[0] = v[0] = np.inf
+    for p, (i, j) in enumerate(pairs[:inner]):
+        (h if j == i + 1 else v)[:, i] = per_thread[:, p]
+    masses[0, :count] = mass
+    masses[1, :count] = 1.0 / mass
+    return Grid(
+        ns=ns, n=n, count=count, h_rest=h[0], h_k=h[1], h_c=h[2], v_rest=v[0], v_k=v[1],
+        v_c=v[2], h_bend=h[3:], v_bend=v[3:], o_pairs=pairs[inner:].copy(), o_rest=o[0].copy(),
+        o_k=o[1].copy(), o_c=o[2].copy(), mass=masses[0], inv_mass=masses[1], x=x, v=vel,
+        q=quat, w=omega, dv=dv, base=base, bend=bend, other=other, th=th, tv=tv, eh=eh, ev=ev,
+        blocks=blocks, wh=wh, wv=wv, cg=cg, block_inv=block_inv, o_tension=np.zeros(q),
+        o_along=np.zeros(q), o_across=np.zeros(q), o_axis=o_axis, o_bend=o[3:7].copy(),
+        o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q), bh=bh, bv=bv,
+        cables=cables)
+
+
+def views(grid: Grid) -> GridViews:
+    """(N, 3) views of the grid's rows (see :class:`GridViews`), made once: a view made in a
+    kernel costs an atomic reference count increment and decrement at every step."""
+    count = grid.count
+    return GridViews(*(a[:, :count].T for a in (grid.x, grid.v, grid.dv, grid.bend,
+                                                grid.other, grid.cg[0], grid.cg[2],
+                                                grid.cg[3], grid.q, grid.w, grid.block_inv)))
+
+
+def load(grid: Grid, state, base) -> None:
+    """Copy a :class:`~bulletnet.model.state.NetState`'s nodes (positions [m], velocities [m/s],
+    and orientations and angular velocities [rad/s] if it has them) and the constant forces
+    ``base`` [N] (N, 3) into the grid's rows."""
+    count = grid.count
+    grid.x[:, :count] = state.position.T
+    grid.v[:, :count] = state.velocity.T
+    grid.base[:, :count] = base.T
+    if state.oriented:
+        grid.q[:, :count] = state.orientation.T
+        grid.w[:, :count] = state.angular_velocity.T
+
+
+def store(grid: Grid, state) -> None:
+    """Copy the grid's nodes back into a :class:`~bulletnet.model.state.NetState`."""
+    count = grid.count
+    state.position[:] = grid.x[:, :count].T
+    state.velocity[:] = grid.v[:, :count].T
+    if state.oriented:
+        state.orientation[:] = grid.q[:, :count].T
+        state.angular_velocity[:] = grid.w[:, :count].T
+
+
+U = nb.uint64
+"""Indices are unsigned in the kernels: numba then skips the negative-index wraparound, which
+would turn every shifted load into a gather, and creates no array views (each view costs an
+atomic reference count increment and decrement)."""
+ONE = U(1)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _neighbours(start, h, v, a, i, ns, sign):
+    """``start`` plus component a of node i's four grid-thread entries in the pair-list
+    kernels' order and signs, - v(i - Ns) - h(i - 1) + h(i) + v(i) (all four negated with
+    ``sign`` -1); h and v hold thread t at column Ns + t. (x - (-w) is x + w exactly, so one
+    order serves both signs bit for bit.)"""
+    return (((start - sign * v[a, i]) - sign * h[a, i + ns - ONE]) + sign * h[a, i + ns]) \
+        + sign * v[a, i + ns]
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _row_tension(x, v, t, j, rest, k, c):
+    """:func:`~bulletnet.kernels.axial.tension_law` of thread t, from node t to node j of the
+    (3, L) rows x [m] and v [m/s]: (T [N], ex, ey, ez, l [m])."""
+    return tension_law(x[0, j] - x[0, t], x[1, j] - x[1, t], x[2, j] - x[2, t],
+                       v[0, j] - v[0, t], v[1, j] - v[1, t], v[2, j] - v[2, t], rest[t], k[t],
+                       c[t], False)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _store_tension(tension_e, col, tension, ex, ey, ez):
+    """Column ``col`` of ``tension_e`` <- T e [N] (zero for a slack thread, whose direction
+    may not be finite)."""
+    on = tension != 0.0
+    tension_e[0, col] = tension * ex if on else 0.0
+    tension_e[1, col] = tension * ey if on else 0.0
+    tension_e[2, col] = tension * ez if on else 0.0
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _tension_stencil(x, v, off, rest, k, c, tension_e, count, ns):
+    """Eq. 3 for threads t < ``count`` from node t to node t + ``off``: T e [N] into
+    column Ns + t of ``tension_e`` (3, Ns + Ns^2); x [m] and v [m/s] are (3, L) rows."""
+    for t in range(count):
+        tension, ex, ey, ez, _ = _row_tension(x, v, t, t + off, rest, k, c)
+        _store_tension(tension_e, t + ns, tension, ex, ey, ez)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _linearize_stencil(x, v, off, rest, k, c, tension_e, axis, blocks, row, dt, count, ns):
+    """:func:`_tension_stencil`, plus each thread's e into ``axis`` and its implicit block's
+    along and across [kg] into blocks[row], blocks[row + 1] (see
+    :func:`~bulletnet.kernels.axial.axial_linearization`)."""
+    for t in range(count):
+        tension, ex, ey, ez, length = _row_tension(x, v, t, t + off, rest, k, c)
+        col = t + ns
+        on = tension != 0.0
+        _store_tension(tension_e, col, tension, ex, ey, ez)
+        axis[0, col], axis[1, col], axis[2, col] = ex, ey, ez
+        blocks[row, col] = dt * c[t] + dt * dt * k[t] if on else 0.0
+        blocks[row + ONE, col] = (dt * dt * k[t] * max(length - rest[t], 0.0) / length
+                                  if on else 0.0)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _other_threads(grid, views, dt, linearize):
+    """The other threads' and the cables' forces [N] into ``other`` (pair-list kernels on the
+    views); with ``linearize`` also their directions and implicit blocks."""
+    other, pairs, cables = views.other, grid.o_pairs, grid.cables
+    for q in range(pairs.shape[0]):
+        for end in range(2):
+            for a in range(3):
+                other[pairs[q, end], a] = 0.0
+    clear_cable_nodes(cables, other)
+    if linearize:
+        axial_linearization(views.position, views.velocity, pairs, grid.o_rest, grid.o_k,
+                            grid.o_c, False, dt, other, grid.o_tension, grid.o_along,
+                            grid.o_across, grid.o_axis)
+    else:
+        axial_forces(views.position, views.velocity, pairs, grid.o_rest, grid.o_k, grid.o_c,
+                     False, other, grid.o_tension)
+    cable_forces(views.position, views.velocity, cables, other, linearize, dt)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def thread_forces(grid, views):
+    """T e of every grid thread into th and tv, the other threads' forces [N] into other."""
+    ns, x, v = U(grid.ns), grid.x, grid.v
+    _tension_stencil(x, v, ONE, grid.h_rest, grid.h_k, grid.h_c, grid.th,
+                     U(grid.h_rest.shape[0]), ns)
+    _tension_stencil(x, v, ns, grid.v_rest, grid.v_k, grid.v_c, grid.tv,
+                     U(grid.v_rest.shape[0]), ns)
+    _other_threads(grid, views, 0.0, False)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _net_force(grid, a, i, ns, bending_scale):
+    """Component a of node i's force [N]: base + bending_scale bend + its grid threads
+    (:func:`_neighbours`) + the other threads; zero on a padding column."""
+    start = grid.base[a, i] + bending_scale * grid.bend[a, i]
+    return _neighbours(start, grid.th, grid.tv, a, i, ns, 1.0) + grid.other[a, i]
+
+
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
+def symplectic_step(grid, views, dt, bending_scale, increment):
+    """One symplectic Euler step of every node: :func:`thread_forces`, then dv = dt F / m with
+    F = :func:`_net_force`, v <- v + dv, x <- x + dt v, in one pass over the rows (padding
+    columns included: they have no force and no mass, and stay at rest); dv is kept in its
+    rows only with ``increment`` (the contact stage reads it)."""
+    ns, length = U(grid.ns), U(grid.x.shape[1])
+    x, v, dv, inv_mass = grid.x, grid.v, grid.dv, grid.inv_mass
+    thread_forces(grid, views)
+    for a in range(U(3)):
+        if increment:  # two loops written out: one loop with this test inside is 5-10 % slower
+            for i in range(length):
+                dv[a, i] = dt * inv_mass[i] * _net_force(grid, a, i, ns, bending_scale)
+                v[a, i] += dv[a, i]
+                x[a, i] += dt * v[a, i]
+        else:
+            for i in range(length):
+                v[a, i] += dt * inv_mass[i] * _net_force(grid, a, i, ns, bending_scale)
+                x[a, i] += dt * v[a, i]
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _move(x, v, dv, dt, count):
+    """v <- v + dv, x <- x + dt v for the first ``count`` columns."""
+    for a in range(U(3)):
+        for i in range(count):
+            v[a, i] += dv[a, i]
+            x[a, i] += dt * v[a, i]
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _block_stencil(rows, off, k, scale, blocks, row, axis, products, count, ns):
+    """Each thread's (t < ``count``, node t to node t + ``off``)
+    :func:`~bulletnet.kernels.axial.block_product` of rows_t - rows_(t + off), with across =
+    blocks[row + 1] and along = blocks[row] or, where ``scale`` > 0, scale k [kg] (the
+    right-hand side's stiffness part), into column Ns + t of ``products``; zero for a slack
+    thread (blocks[row] 0)."""
+    for t in range(count):
+        j, col = t + off, t + ns
+        along = blocks[row, col]
+        w0, w1, w2 = block_product(rows[0, t] - rows[0, j], rows[1, t] - rows[1, j],
+                                   rows[2, t] - rows[2, j],
+                                   scale * k[t] if scale > 0.0 else along,
+                                   blocks[row + ONE, col], axis[0, col], axis[1, col],
+                                   axis[2, col])
+        on = along != 0.0
+        products[0, col] = w0 if on else 0.0
+        products[1, col] = w1 if on else 0.0
+        products[2, col] = w2 if on else 0.0
+
+
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
+def _block_products(grid, rows, scale):
+    """Every grid thread's block times its nodes' difference of ``rows`` (3, L), into wh and
+    wv: the system's blocks (``scale`` 0) or, for the right-hand side, the blocks with
+    along = scale k (scale dt^2 [s^2])."""
+    ns, n, blocks = U(grid.ns), U(grid.n), grid.blocks
+    _block_stencil(rows, ONE, grid.h_k, scale, blocks, U(0), grid.eh, grid.wh, n - ONE, ns)
+    _block_stencil(rows, ns, grid.v_k, scale, blocks, U(2), grid.ev, grid.wv, n - ns, ns)
+
+
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
+def _apply(grid, rows, out, rows_view, out_view):
+    """out = M rows + the threads' blocks applied to rows (the implicit system's product;
+    rows, out (3, L), and their (N, 3) views), in the pair-list kernels' order."""
+    ns, n, count, mass = U(grid.ns), U(grid.n), U(grid.count), grid.mass
+    wh, wv = grid.wh, grid.wv
+    _block_products(grid, rows, 0.0)
+    for a in range(U(3)):
+        for i in range(n):
+            out[a, i] = _neighbours(mass[i] * rows[a, i], wh, wv, a, i, ns, 1.0)
+        for i in range(n, count):
+            out[a, i] = mass[i] * rows[a, i]
+    add_thread_blocks(rows_view, grid.o_pairs, grid.o_along, grid.o_across, grid.o_axis,
+                      out_view)
+    add_cable_product(rows_view, grid.cables, out_view, 0.0, 1.0)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _add_thread_block(m, blocks, row, axis, col):
+    """m + the implicit block of the thread at column ``col`` of blocks[row], axis (its
+    along, across, e), or m itself for a slack thread (its terms are zeroed, not skipped,
+    so that the loop over nodes has no branch; m + 0.0 is m)."""
+    on = blocks[row, col] != 0.0
+    along = blocks[row, col] if on else 0.0
+    across = blocks[row + ONE, col] if on else 0.0
+    return add_block(m, along, across, axis[0, col] if on else 0.0,
+                     axis[1, col] if on else 0.0, axis[2, col] if on else 0.0)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _store(rows, i, m):
+    """Column i of (9, L) ``rows`` <- the 9-tuple m (stored entry by entry: a tuple indexed
+    in a loop would compile to a jump table and keep the node loop from vectorizing)."""
+    rows[0, i], rows[1, i], rows[2, i] = m[0], m[1], m[2]
+    rows[3, i], rows[4, i], rows[5, i] = m[3], m[4], m[5]
+    rows[6, i], rows[7, i], rows[8, i] = m[6], m[7], m[8]
+
+
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
+def _block_jacobi(grid, views):
+    """Each node's 3 x 3 diagonal block of the implicit system, inverted, into block_inv."""
+    ns, n, count, mass, inv = U(grid.ns), U(grid.n), U(grid.count), grid.mass, grid.block_inv
+    blocks, eh, ev = grid.blocks, grid.eh, grid.ev
+    for i in range(n):  # v(i - Ns), h(i - 1), h(i), v(i): the pair-list order
+        m = (mass[i], 0.0, 0.0, 0.0, mass[i], 0.0, 0.0, 0.0, mass[i])
+        m = _add_thread_block(m, blocks, U(2), ev, i)
+        m = _add_thread_block(m, blocks, U(0), eh, ns + i - ONE)
+        m = _add_thread_block(m, blocks, U(0), eh, ns + i)
+        m = _add_thread_block(m, blocks, U(2), ev, ns + i)
+        _store(inv, i, m)
+    for i in range(n, count):
+        for a in range(9):
+            inv[a, i] = mass[i] if a % 4 == 0 else 0.0
+    pairs, along, across, axis = grid.o_pairs, grid.o_along, grid.o_across, grid.o_axis
+    for q in range(pairs.shape[0]):
+        if along[q] == 0.0 and across[q] == 0.0:
+            continue
+        for node in (pairs[q, 0], pairs[q, 1]):
+            m = add_block((inv[0, node], inv[1, node], inv[2, node], inv[3, node], inv[4, node],
+                           inv[5, node], inv[6, node], inv[7, node], inv[8, node]), along[q],
+                          across[q], axis[q, 0], axis[q, 1], axis[q, 2])
+            for a in range(9):
+                inv[a, node] = m[a]
+    add_cable_blocks(grid.cables, views.block_inv)
+    for i in range(count):
+        _store(inv, i, invert3((inv[0, i], inv[1, i], inv[2, i], inv[3, i], inv[4, i],
+                                inv[5, i], inv[6, i], inv[7, i], inv[8, i])))
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _dot(a, b, count):
+    """sum_i a_i . b_i over the first ``count`` columns of (3, L) rows, node by node (the
+    pair-list kernels' order)."""
+    s = 0.0
+    for i in range(count):
+        s += a[0, i] * b[0, i] + a[1, i] * b[1, i] + a[2, i] * b[2, i]
+    return s
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _dots(r, z, count):
+    """(:func:`_dot` of r and z, :func:`_dot` of r and r) in one pass: the same sums in the
+    same order, their two dependency chains interleaved."""
+    rz = rr = 0.0
+    for i in range(count):
+        r0, r1, r2 = r[0, i], r[1, i], r[2, i]
+        rz += r0 * z[0, i] + r1 * z[1, i] + r2 * z[2, i]
+        rr += r0 * r0 + r1 * r1 + r2 * r2
+    return rz, rr
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _precondition(inv, r, z, count):
+    """z = the inverse diagonal blocks times r, node by node."""
+    for a in range(U(3)):
+        for i in range(count):
+            z[a, i] = inv[U(3) * a, i] * r[0, i] + inv[U(3) * a + ONE, i] * r[1, i] \
+                + inv[U(3) * a + U(2), i] * r[2, i]
+
+
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
+def implicit_step(grid, views, dt, tol, iterations):
+    """One linearly implicit Euler step (:func:`bulletnet.solver.integrators.implicit_increment`,
+    the same arithmetic in the same order) on the rows: dv by preconditioned CG from its
+    last value, v <- v + dv, x <- x + dt v. base and bend hold the non-axial forces [N];
+    ``iterations`` (1,) counts CG iterations."""
+    ns, n, count, mass = U(grid.ns), U(grid.n), U(grid.count), grid.mass
+    x, v, dv, inv, blocks = grid.x, grid.v, grid.dv, grid.block_inv, grid.blocks
+    base, bend, other, th, tv = grid.base, grid.bend, grid.other, grid.th, grid.tv
+    r, z, d, ad = grid.cg[0], grid.cg[1], grid.cg[2], grid.cg[3]
+    _linearize_stencil(x, v, ONE, grid.h_rest, grid.h_k, grid.h_c, th, grid.eh, blocks, U(0),
+                       dt, n - ONE, ns)
+    _linearize_stencil(x, v, ns, grid.v_rest, grid.v_k, grid.v_c, tv, grid.ev, blocks, U(2),
+                       dt, n - ns, ns)
+    _other_threads(grid, views, dt, True)
+    # right-hand side dt F - dt^2 K v, in r
+    _block_products(grid, v, dt * dt)
+    wh, wv = grid.wh, grid.wv
+    for a in range(U(3)):
+        for i in range(n):
+            f = _neighbours(base[a, i] + bend[a, i], th, tv, a, i, ns, 1.0) + other[a, i]
+            r[a, i] = _neighbours(dt * f, wh, wv, a, i, ns, -1.0)
+        for i in range(n, count):
+            r[a, i] = dt * (base[a, i] + bend[a, i] + other[a, i])
+    add_thread_rhs(views.velocity, grid.o_pairs, grid.o_k, grid.o_along, grid.o_across,
+                   grid.o_axis, dt, views.r)
+    add_cable_product(views.velocity, grid.cables, views.r, dt * dt, -1.0)
+    m0 = m1 = m2 = 0.0  # the step's exact momentum change (internal forces cancel)
+    for i in range(count):
+        m0 += r[0, i]
+    for i in range(count):
+        m1 += r[1, i]
+    for i in range(count):
+        m2 += r[2, i]
+    rhs_norm = np.sqrt(_dot(r, r, count))
+    if rhs_norm != 0.0:
+        _block_jacobi(grid, views)
+        _apply(grid, dv, ad, views.dv, views.ad)  # r <- rhs - A dv (warm start)
+        for a in range(U(3)):
+            for i in range(count):
+                r[a, i] -= ad[a, i]
+        _precondition(inv, r, z, count)
+        for a in range(U(3)):
+            for i in range(count):
+                d[a, i] = z[a, i]
+        rz, rr = _dots(r, z, count)
+        for _ in range(4 * grid.count):
+            if np.sqrt(rr) <= tol * rhs_norm:
+                break
+            _apply(grid, d, ad, views.d, views.ad)
+            alpha = rz / _dot(d, ad, count)
+            for a in range(U(3)):
+                for i in range(count):
+                    dv[a, i] += alpha * d[a, i]
+                    r[a, i] -= alpha * ad[a, i]
+            _precondition(inv, r, z, count)
+            rz_new, rr = _dots(r, z, count)
+            beta = rz_new / rz
+            rz = rz_new
+            for a in range(U(3)):
+                for i in range(count):
+                    d[a, i] = z[a, i] + beta * d[a, i]
+            iterations[0] += 1
+        # the momentum correction of the pair-list kernel (see there)
+        total_mass = 0.0
+        for i in range(count):
+            total_mass += mass[i]
+            m0 -= mass[i] * dv[0, i]
+            m1 -= mass[i] * dv[1, i]
+            m2 -= mass[i] * dv[2, i]
+        for i in range(count):
+            dv[0, i] += m0 / total_mass
+        for i in range(count):
+            dv[1, i] += m1 / total_mass
+        for i in range(count):
+            dv[2, i] += m2 / total_mass
+    else:
+        dv[:] = 0.0
+    _move(x, v, dv, dt, count)
+
+
+@functools.cache
+def free_steps(implicit: bool):
+    """The compiled loop ``(grid, views, steps, dt, tol, iterations)`` that takes ``steps``
+    steps of implicit Euler (``implicit``: CG to the relative residual ``tol``, ``iterations``
+    (1,) counting) or of symplectic Euler of a net with no bending, no contact and no cables:
+    the threads, gravity, loads and external forces only. (One compiled loop around the step
+    kernels: no per-step bookkeeping. ``implicit`` is a constant of the loop, so numba prunes
+    the other integrator's branch and compiles only the step in use.)"""
+
+    @nb.njit(cache=True, error_model="numpy", _nrt=False)
+    def free_loop(grid, views, steps, dt, tol, iterations):
+        for _ in range(steps):
+            if implicit:
+                implicit_step(grid, views, dt, tol, iterations)
+            else:
+                symplectic_step(grid, views, dt, 0.0, False)
+
+    return free_loop
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _bending_stencil(x, v, q, w, off, params, out, count, ns):
+    """The bending springs of threads t < ``count`` from node t to node t + ``off``
+    (:func:`~bulletnet.kernels.bending.bending_forces`' arithmetic) into column Ns + t of
+    ``out`` (see :attr:`Grid.bh`), from the rows x [m], v [m/s], q [-] and w [rad/s]. Two
+    loops: LLVM vectorizes each, not the two fused."""
+    for t in range(count):
+        j, col = t + off, t + ns
+        rx, ry, rz = x[0, j] - x[0, t], x[1, j] - x[1, t], x[2, j] - x[2, t]
+        fx, fy, fz = transverse_force(
+            rx, ry, rz, v[0, j] - v[0, t], v[1, j] - v[1, t], v[2, j] - v[2, t], q[0, t],
+            q[1, t], q[2, t], q[3, t], w[0, t], w[1, t], w[2, t], params[4, t], params[5, t],
+            params[6, t], params[0, t], params[1, t])
+        out[0, col], out[1, col], out[2, col] = fx, fy, fz
+        out[3, col], out[4, col], out[5, col] = ry * fz - rz * fy, rz * fx - rx * fz, \
+            rx * fy - ry * fx
+    for t in range(count):
+        j, col = t + off, t + ns
+        px, py, pz = relative_rotation_vector(q[0, t], q[1, t], q[2, t], q[3, t], q[0, j],
+                                              q[1, j], q[2, j], q[3, j])
+        out[6, col], out[7, col], out[8, col] = angular_torque(
+            px, py, pz, w[0, j] - w[0, t], w[1, j] - w[1, t], w[2, j] - w[2, t], params[2, t],
+            params[3, t])
+
+
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
+def bending(grid, views, torque):
+    """The bending springs afresh (as :func:`~bulletnet.solver.integrators.evaluate_bending`, in the
+    pair-list order): forces [N] into the bend rows, torques [N m] into ``torque`` (N, 3)."""
+    ns, n, count = U(grid.ns), U(grid.n), U(grid.count)
+    x, v, q, w, bh, bv, bend = grid.x, grid.v, grid.q, grid.w, grid.bh, grid.bv, grid.bend
+    _bending_stencil(x, v, q, w, ONE, grid.h_bend, bh, n - ONE, ns)
+    _bending_stencil(x, v, q, w, ns, grid.v_bend, bv, n - ns, ns)
+    for a in range(U(3)):
+        for i in range(n):
+            bend[a, i] = _neighbours(0.0, bh, bv, a, i, ns, 1.0)
+        for i in range(n, count):
+            bend[a, i] = 0.0
+    for a in range(U(3)):
+        for i in range(n):
+            torque[i, a] = (((((0.0 - bv[a + U(6), i]) - bh[a + U(6), i + ns - ONE])
+                              + bh[a + U(3), i + ns]) + bh[a + U(6), i + ns])
+                            + bv[a + U(3), i + ns]) + bv[a + U(6), i + ns]
+        for i in range(n, count):
+            torque[i, a] = 0.0
+    p = grid.o_bend
+    bending_forces(views.position, views.velocity, views.quat, views.omega, grid.o_pairs,
+                   grid.o_rest_axis, p[0], p[1], p[2], p[3], views.bend, torque, grid.o_shear)

@@ -1,0 +1,491 @@
+"""Time integrators of the net, compiled with numba.
+
+Each integrator computes the velocity increment dv [m/s] of one step from the state; the step
+is then v <- v + dv, x <- x + dt v (and, with bending, w <- w + dt tau / J, q <- exp(dt w / 2) q;
+the soft bending springs are evaluated every n steps, see :func:`advance`).
+The fast engine does this in compiled loops; the bullet engine hands m dv / dt and tau to
+PyBullet as external force and torque and lets PyBullet take the step (its integrator is the
+same semi-implicit update), so both engines run the same method.
+
+- ``symplectic_euler``: dv = dt F(x, v) / m. Explicit, first order; stable only while
+  dt < ~2 m / c for the thread dampers (a few microseconds for the paper's nets).
+- ``implicit_euler``: linearly implicit (one Newton step of) backward Euler on the axial
+  threads, (M + dt C + dt^2 K) dv = dt F - dt^2 K v, solved by block-Jacobi preconditioned
+  conjugate gradients, then shifted by the uniform velocity that makes the step conserve
+  momentum exactly (the threads' blocks vanish on it). Bending forces enter F explicitly;
+  the node rotations take dw = h tau / (J + h C_g + h^2 K_g) with C_g, K_g the Gershgorin
+  bounds of their angular damping and stiffness (:func:`rotational_bounds`; h the bending
+  interval): a diagonally implicit step, stable at any step. First order, stable on the
+  damped threads.
+
+Clamped nodes (``model.fixed``) never move or turn.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import numba as nb
+import numpy as np
+
+from ..kernels.axial import (
+    add_block,
+    add_thread_blocks,
+    add_thread_rhs,
+    axial_forces,
+    axial_linearization,
+    invert3,
+)
+from ..kernels.bending import advance_rotation, bending_forces
+from ..kernels.cable import (
+    CableArrays,
+    add_cable_blocks,
+    add_cable_product,
+    cable_forces,
+    reel,
+)
+from ..model.net import NetModel
+from . import grid as grid_kernels
+from .contact_stage import contact_stage, ensure_pairs
+
+SYMPLECTIC_EULER = 0
+IMPLICIT_EULER = 1
+INTEGRATOR_IDS = {"symplectic_euler": SYMPLECTIC_EULER, "implicit_euler": IMPLICIT_EULER}
+
+
+def rotational_bounds(model: NetModel) -> tuple[np.ndarray, np.ndarray]:
+    """Gershgorin bounds of each node's row of the bending system's angular damping and
+    stiffness: 2 sum over its threads of (c_b + c_t l^2) [N m s/rad] and of (k_b + k_t l^2)
+    [N m/rad], each shape (N,). They bound the eigenvalues of the coupled rotations."""
+    stiffness = model.bending_stiffness + model.transverse_stiffness * model.rest_length**2
+    damping = model.bending_damping + model.transverse_damping * model.rest_length**2
+    k_sum = np.zeros(model.node_count)
+    c_sum = np.zeros(model.node_count)
+    for end in (0, 1):
+        np.add.at(k_sum, model.pairs[:, end], stiffness)
+        np.add.at(c_sum, model.pairs[:, end], damping)
+    return 2.0 * c_sum, 2.0 * k_sum
+
+
+class ModelArrays(NamedTuple):
+    """The net model as the compiled kernels read it (:class:`~bulletnet.model.net.NetModel`'s
+    arrays, plus derived ones), for N nodes and P threads."""
+
+    mass: np.ndarray
+    """Node masses [kg], shape (N,)."""
+    pairs: np.ndarray
+    """Thread end nodes (i, j) [-], shape (P, 2), int64."""
+    rest: np.ndarray
+    """Thread rest lengths [m], shape (P,)."""
+    k_a: np.ndarray
+    """Axial stiffness [N/m], shape (P,)."""
+    c_a: np.ndarray
+    """Axial damping [N s/m], shape (P,)."""
+    k_t: np.ndarray
+    """Transverse stiffness [N/m], shape (P,)."""
+    c_t: np.ndarray
+    """Transverse damping [N s/m], shape (P,)."""
+    k_b: np.ndarray
+    """Bending stiffness [N m/rad], shape (P,)."""
+    c_b: np.ndarray
+    """Bending damping [N m s/rad], shape (P,)."""
+    inertia: np.ndarray
+    """Node moments of inertia [kg m^2], shape (N,)."""
+    rest_axis: np.ndarray
+    """Thread rest direction in node i's body frame [-], shape (P, 3)."""
+    fixed: np.ndarray
+    """Clamped nodes [-], shape (N,), bool."""
+    load: np.ndarray
+    """Constant external force on each node [N], shape (N, 3)."""
+    bilateral: bool
+    """Whether the elements also resist compression."""
+    inv_mass: np.ndarray
+    """1 / mass, 0 for clamped nodes [1/kg], shape (N,)."""
+    radius: np.ndarray
+    """Node sphere radii [m], shape (N,)."""
+    rot_c: np.ndarray
+    """Gershgorin bound of each node's angular damping [N m s/rad], shape (N,)
+    (:func:`rotational_bounds`)."""
+    rot_k: np.ndarray
+    """Gershgorin bound of each node's angular stiffness [N m/rad], shape (N,)."""
+    cables: CableArrays | None
+    """The closing cables and their winches (:mod:`bulletnet.kernels.cable`); None without
+    (the cable kernels then compile to nothing)."""
+
+
+def model_arrays(model: NetModel, cables: CableArrays | None = None) -> ModelArrays:
+    """The model's arrays as the compiled kernels read them, with the closing ``cables``
+    (:func:`~bulletnet.kernels.cable.cable_arrays`; None, or none in them: no cables)."""
+    m = model
+    rot_c, rot_k = rotational_bounds(m)
+    return ModelArrays(
+        mass=m.mass, pairs=m.pairs, rest=m.rest_length, k_a=m.axial_stiffness,
+        c_a=m.axial_damping, k_t=m.transverse_stiffness, c_t=m.transverse_damping,
+        k_b=m.bending_stiffness, c_b=m.bending_damping, inertia=m.inertia,
+        rest_axis=m.rest_axis, fixed=m.fixed, load=m.load, bilateral=m.bilateral,
+        inv_mass=np.where(m.fixed, 0.0, 1.0 / m.mass),  # clamped nodes: no velocity change
+        radius=m.radius, rot_c=rot_c, rot_k=rot_k,
+        cables=cables if cables is not None and cables.rest.shape[0] else None)
+
+
+class Workspace(NamedTuple):
+    """Scratch arrays of the integrators for a net of N nodes and P threads
+    (:func:`workspace`)."""
+
+    force: np.ndarray
+    """Force on each node [N], shape (N, 3)."""
+    torque: np.ndarray
+    """Torque on each node [N m], shape (N, 3) (bending only)."""
+    tension: np.ndarray
+    """Thread tensions [N], shape (P,)."""
+    shear: np.ndarray
+    """Thread shear force magnitudes [N], shape (P,) (bending only)."""
+    along: np.ndarray
+    """Implicit block along each thread [kg], shape (P,)."""
+    across: np.ndarray
+    """Implicit block across each thread [kg], shape (P,)."""
+    axis: np.ndarray
+    """Thread unit directions [-], shape (P, 3)."""
+    dv: np.ndarray
+    """Velocity increment of the last step [m/s], shape (N, 3); warm start of CG."""
+    cg: np.ndarray
+    """CG vectors r, z, d, A d, shape (4, N, 3)."""
+    block_inv: np.ndarray
+    """Inverse block-Jacobi preconditioner [1/kg], shape (N, 3, 3)."""
+    cg_iterations: np.ndarray
+    """CG iterations summed over all implicit steps [-], shape (1,), int64."""
+    bend: np.ndarray
+    """Bending forces of the last evaluation [N], shape (N, 3); held until the next."""
+    step_count: np.ndarray
+    """Steps taken, for the bending schedule [-], shape (1,), int64."""
+    gain: np.ndarray
+    """Angular velocity change per step per unit held bending torque [rad/(N m s)],
+    shape (N,) (:func:`angular_gains`)."""
+
+
+def workspace(n: int, p: int) -> Workspace:
+    """Zeroed scratch arrays for N nodes and P threads."""
+    return Workspace(
+        force=np.zeros((n, 3)), torque=np.zeros((n, 3)), tension=np.zeros(p),
+        shear=np.zeros(p), along=np.zeros(p), across=np.zeros(p), axis=np.zeros((p, 3)),
+        dv=np.zeros((n, 3)), cg=np.zeros((4, n, 3)), block_inv=np.zeros((n, 3, 3)),
+        cg_iterations=np.zeros(1, dtype=np.int64), bend=np.zeros((n, 3)),
+        step_count=np.zeros(1, dtype=np.int64), gain=np.zeros(n))
+
+
+@nb.njit(cache=True, error_model="numpy")
+def evaluate_bending(pos, vel, quat, omega, model, work):
+    """The bending springs afresh: forces [N] into work's bend, torques [N m] into its
+    torque, the threads' shear [N] into its shear. Without bending (``quat`` None) nothing,
+    and nothing is compiled."""
+    if quat is None:
+        return
+    work.torque[:] = 0.0
+    work.bend[:] = 0.0
+    bending_forces(pos, vel, quat, omega, model.pairs, model.rest_axis, model.k_t, model.c_t,
+                   model.k_b, model.c_b, work.bend, work.torque, work.shear)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending_weight,
+                    hold):
+    """Gravity, loads, ``external`` [N] (N, 3) and the bending forces into work's force
+    (``quat``, ``omega``: the nodes' orientations (N, 4) and angular velocities [rad/s]
+    (N, 3), or None without bending).
+    With ``bending_weight`` w > 0 the bending springs are evaluated afresh first: their forces
+    [N] into work's bend, their torques [N m] into work's torque, the threads' shear [N] into
+    work's shear. The bending forces then enter as an impulse (w times, on this step only) or,
+    with ``hold``, held (once on this and every step until the next evaluation)."""
+    mass, load, force, bend = model.mass, model.load, work.force, work.bend
+    if bending_weight > 0.0:
+        evaluate_bending(pos, vel, quat, omega, model, work)
+    scale = 1.0 if hold else bending_weight  # (bend stays zero without bending)
+    for i in range(pos.shape[0]):
+        for a in range(3):
+            force[i, a] = mass[i] * gravity[a] + load[i, a] + external[i, a] + scale * bend[i, a]
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _apply_blocks(x, pairs, along, across, axis, mass, fixed, cables, out):
+    """out = M x + sum_p B_p-Laplacian x + the cables' blocks x, the implicit-Euler system
+    applied to x (rows of clamped nodes are the identity)."""
+    for i in range(x.shape[0]):
+        for a in range(3):
+            out[i, a] = mass[i] * x[i, a]
+    add_thread_blocks(x, pairs, along, across, axis, out)
+    add_cable_product(x, cables, out, 0.0, 1.0)
+    for i in range(x.shape[0]):
+        if fixed[i]:
+            out[i, 0], out[i, 1], out[i, 2] = x[i, 0], x[i, 1], x[i, 2]
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _block_jacobi(pairs, along, across, axis, mass, cables, inv):
+    """Invert each node's 3x3 diagonal block of the implicit system (the cables' vertices'
+    shares included) into ``inv``."""
+    n = mass.shape[0]
+    flat = inv.reshape((n, 9))
+    for i in range(n):
+        for a in range(9):
+            flat[i, a] = mass[i] if a % 4 == 0 else 0.0
+    for p in range(pairs.shape[0]):
+        if along[p] == 0.0 and across[p] == 0.0:
+            continue
+        for node in (pairs[p, 0], pairs[p, 1]):
+            m = add_block((flat[node, 0], flat[node, 1], flat[node, 2], flat[node, 3],
+                           flat[node, 4], flat[node, 5], flat[node, 6], flat[node, 7],
+                           flat[node, 8]), along[p], across[p], axis[p, 0], axis[p, 1],
+                          axis[p, 2])
+            for a in range(9):
+                flat[node, a] = m[a]
+    add_cable_blocks(cables, flat)
+    for i in range(n):
+        m = invert3((flat[i, 0], flat[i, 1], flat[i, 2], flat[i, 3], flat[i, 4], flat[i, 5],
+                     flat[i, 6], flat[i, 7], flat[i, 8]))
+        for a in range(9):
+            flat[i, a] = m[a]
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _dot(a, b):
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += a[i, 0] * b[i, 0] + a[i, 1] * b[i, 1] + a[i, 2] * b[i, 2]
+    return s
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _precondition(inv, fixed, r, z):
+    for i in range(r.shape[0]):
+        if fixed[i]:
+            z[i, 0], z[i, 1], z[i, 2] = 0.0, 0.0, 0.0
+            continue
+        for a in range(3):
+            z[i, a] = inv[i, a, 0] * r[i, 0] + inv[i, a, 1] * r[i, 1] + inv[i, a, 2] * r[i, 2]
+
+
+@nb.njit(cache=True, error_model="numpy")
+def implicit_increment(pos, vel, model, work, dt, tol):
+    """Velocity increment dv [m/s] of one linearly implicit Euler step (see module doc), into
+    work's dv (which holds the previous increment on entry: the CG warm start). Work's force
+    must hold the non-axial forces on entry (:func:`external_forces`)."""
+    mass, pairs, rest, k_a, c_a = model.mass, model.pairs, model.rest, model.k_a, model.c_a
+    fixed, bilateral = model.fixed, model.bilateral
+    force, tension, along, across, axis = (work.force, work.tension, work.along, work.across,
+                                           work.axis)
+    dv, cg, block_inv, iterations = work.dv, work.cg, work.block_inv, work.cg_iterations
+    n = pos.shape[0]
+    cables = model.cables
+    axial_linearization(pos, vel, pairs, rest, k_a, c_a, bilateral, dt, force, tension, along,
+                        across, axis)
+    cable_forces(pos, vel, cables, force, True, dt)
+    r, z, d, ad = cg[0], cg[1], cg[2], cg[3]
+    # right-hand side dt F - dt^2 K v, in r
+    for i in range(n):
+        for a in range(3):
+            r[i, a] = dt * force[i, a]
+    add_thread_rhs(vel, pairs, k_a, along, across, axis, dt, r)
+    add_cable_product(vel, cables, r, dt * dt, -1.0)
+    clamped = False
+    for i in range(n):
+        if fixed[i]:
+            clamped = True
+            r[i, 0], r[i, 1], r[i, 2] = 0.0, 0.0, 0.0
+            dv[i, 0], dv[i, 1], dv[i, 2] = 0.0, 0.0, 0.0
+    momentum = np.zeros(3)  # the step's exact momentum change: sum of dt F (internal forces cancel)
+    for i in range(n):
+        for a in range(3):
+            momentum[a] += r[i, a]
+    rhs_norm = np.sqrt(_dot(r, r))
+    if rhs_norm == 0.0:
+        dv[:] = 0.0
+        return
+    _block_jacobi(pairs, along, across, axis, mass, cables, block_inv)
+    # r <- rhs - A dv (warm start)
+    _apply_blocks(dv, pairs, along, across, axis, mass, fixed, cables, ad)
+    for i in range(n):
+        for a in range(3):
+            r[i, a] -= ad[i, a]
+    _precondition(block_inv, fixed, r, z)
+    d[:] = z
+    rz = _dot(r, z)
+    rr = _dot(r, r)
+    for _ in range(4 * n):
+        if np.sqrt(rr) <= tol * rhs_norm:
+            break
+        _apply_blocks(d, pairs, along, across, axis, mass, fixed, cables, ad)
+        alpha = rz / _dot(d, ad)
+        rz_new = rr = 0.0
+        for i in range(n):  # one pass: update, precondition (block Jacobi), dot products
+            for a in range(3):
+                dv[i, a] += alpha * d[i, a]
+                r[i, a] -= alpha * ad[i, a]
+            r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
+            if fixed[i]:
+                z[i, 0], z[i, 1], z[i, 2] = 0.0, 0.0, 0.0
+            else:
+                for a in range(3):
+                    z[i, a] = block_inv[i, a, 0] * r0 + block_inv[i, a, 1] * r1 \
+                        + block_inv[i, a, 2] * r2
+            rz_new += r0 * z[i, 0] + r1 * z[i, 1] + r2 * z[i, 2]
+            rr += r0 * r0 + r1 * r1 + r2 * r2
+        beta = rz_new / rz
+        rz = rz_new
+        for i in range(n):
+            for a in range(3):
+                d[i, a] = z[i, a] + beta * d[i, a]
+        iterations[0] += 1
+    if clamped:  # a clamp takes up momentum: nothing to conserve
+        return
+    # The threads' blocks vanish on a uniform velocity, so adding one to dv changes only the
+    # momentum residual: choose it so the step conserves momentum exactly, not to CG tolerance.
+    total_mass = 0.0
+    for i in range(n):
+        total_mass += mass[i]
+        for a in range(3):
+            momentum[a] -= mass[i] * dv[i, a]
+    for i in range(n):
+        for a in range(3):
+            dv[i, a] += momentum[a] / total_mass
+
+
+@nb.njit(cache=True, error_model="numpy")
+def symplectic_increment(pos, vel, model, work, dt):
+    """Velocity increment dv = dt F / m [m/s] of one symplectic Euler step, into work's dv.
+    Work's force must hold the non-axial forces on entry (:func:`external_forces`)."""
+    inv_mass, force, dv = model.inv_mass, work.force, work.dv
+    axial_forces(pos, vel, model.pairs, model.rest, model.k_a, model.c_a, model.bilateral,
+                 force, work.tension)
+    cable_forces(pos, vel, model.cables, force, False, 0.0)
+    for i in range(pos.shape[0]):
+        h = dt * inv_mass[i]
+        for a in range(3):
+            dv[i, a] = h * force[i, a]
+
+
+@nb.njit(cache=True, error_model="numpy")
+def angular_gains(method, weight, dt, model, gain):
+    """Each node's angular velocity change per step of ``dt`` [s] per unit bending torque
+    [rad/(N m s)] for springs evaluated every ``weight`` steps, into ``gain`` (N,): dt / J for
+    symplectic Euler; for implicit Euler the rotations' own damping and stiffness are
+    implicit on the diagonal, scaled by their Gershgorin bounds, dt / (J + h C_g + h^2 K_g)
+    with h = weight dt (stable at any step). Zero for clamped nodes."""
+    inertia, fixed, rot_c, rot_k = model.inertia, model.fixed, model.rot_c, model.rot_k
+    h = dt * weight if method == IMPLICIT_EULER else 0.0
+    for i in range(gain.shape[0]):
+        gain[i] = 0.0 if fixed[i] else dt / (inertia[i] + h * rot_c[i] + h * h * rot_k[i])
+
+
+@nb.njit(cache=True, error_model="numpy")
+def bending_weight(bending, every, work):
+    """Steps the bending springs evaluated this step stand for: ``every`` on every
+    ``every``-th step, 0 otherwise (they are not evaluated) or without bending."""
+    if not bending:
+        return 0.0
+    return float(every) if work.step_count[0] % every == 0 else 0.0
+
+
+@functools.cache
+def increment(implicit: bool):
+    """The compiled kernel ``(weight, pos, vel, quat, omega, model, work, gravity, external,
+    dt, tol)``: all forces at the state (bending with ``weight``), then the velocity increment
+    of implicit Euler (``implicit``: CG to the relative residual ``tol``) or of symplectic
+    Euler into work's dv; counts the step. (``implicit`` is a constant of the kernel: each
+    integrator compiles only its own increment.)"""
+
+    @nb.njit(cache=True, error_model="numpy")
+    def increment_kernel(weight, pos, vel, quat, omega, model, work, gravity, external, dt,
+                         tol):
+        external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
+                        implicit)
+        if implicit:
+            implicit_increment(pos, vel, model, work, dt, tol)
+        else:
+            symplectic_increment(pos, vel, model, work, dt)
+        work.step_count[0] += 1
+
+    return increment_kernel
+
+
+@functools.cache
+def advance(on_grid: bool, implicit: bool):
+    """The compiled loop ``(every, steps, pos, vel, quat, omega, model, work, gravity,
+    external, dt, tol, contact, t0, grid, views)`` of the grid's stencils (``on_grid``) or the
+    pair-list kernels, with implicit Euler (``implicit``: CG to the relative residual ``tol``)
+    or symplectic Euler. It takes up to ``steps`` steps in place on (pos, vel[, quat, omega])
+    from time ``t0`` [s]: the bending forces every ``every`` steps (``quat``, ``omega`` None:
+    no bending); then contact (:func:`bulletnet.solver.contact_stage.contact_stage`; ``contact``
+    None: none); the winches reel the closing cables before each step
+    (:func:`~bulletnet.kernels.cable.reel`; model's cables None: none). Returns the steps
+    taken: fewer only if the self-contact list must grow first (the caller grows it and
+    continues). The caller checks the result for non-finite values; a diverging chunk is at
+    most one record interval. The bending springs, evaluated every ``every`` steps, act as
+    one impulse standing for the interval (symplectic Euler: the multirate step stays
+    symplectic) or are held over it (implicit Euler: a smooth right-hand side keeps the CG
+    warm start); either way the orientations are advanced once per interval
+    (:func:`~bulletnet.kernels.bending.advance_rotation`). On the grid
+    (:mod:`bulletnet.solver.grid`)
+    ``pos``, ``vel``, ``quat``, ``omega`` and work's dv are its ``views``, and gravity and
+    external have been loaded into its base (grid and views are None on the pair list).
+
+    A scene compiles only the kernels it uses: ``on_grid`` and ``implicit`` are constants of
+    the loop and a feature left out is None, and numba prunes those branches before typing
+    (a net without bending compiles no bending kernel, a deployment no contact stage); a
+    free net on the grid (no bending, contact or cables) takes
+    :func:`bulletnet.solver.grid.free_steps` and compiles none of this loop."""
+    step = increment(implicit)
+    hold = 1.0 if implicit else 0.0  # bending held over the interval, or an impulse
+    method = IMPLICIT_EULER if implicit else SYMPLECTIC_EULER
+
+    @nb.njit(cache=True, error_model="numpy")
+    def advance_loop(every, steps, pos, vel, quat, omega, model, work, gravity, external, dt,
+                     tol, contact, t0, grid, views):
+        n = pos.shape[0]
+        mass, fixed, radius = model.mass, model.fixed, model.radius
+        torque, dv, gain = work.torque, work.dv, work.gain
+        pending = 0  # steps of rotation not yet applied to (quat, omega)
+        taken = 0
+        for k in range(steps):
+            if contact is not None:
+                if not ensure_pairs(pos, radius, contact):
+                    break
+            reel(pos, model.cables, t0 + k * dt, dt)
+            weight = 0.0
+            if quat is not None:
+                weight = bending_weight(True, every, work)
+                if weight > 0.0 and pending > 0:
+                    advance_rotation(quat, omega, gain, torque, hold, pending, dt)
+                    pending = 0
+            if on_grid:  # the grid's stencils (bending as in external_forces)
+                if quat is not None:
+                    if weight > 0.0:
+                        grid_kernels.bending(grid, views, work.torque)
+                if implicit:
+                    grid_kernels.implicit_step(grid, views, dt, tol, work.cg_iterations)
+                else:
+                    grid_kernels.symplectic_step(grid, views, dt, weight, contact is not None)
+                work.step_count[0] += 1
+            else:
+                step(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol)
+                for i in range(n):
+                    for a in range(3):
+                        vel[i, a] += dv[i, a]
+                        pos[i, a] += dt * vel[i, a]
+            if contact is not None:
+                contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t0 + k * dt)
+            if quat is not None:
+                if weight > 0.0:
+                    angular_gains(method, weight, dt, model, gain)
+                    if not implicit:  # an impulse standing for the interval
+                        for i in range(n):
+                            for a in range(3):
+                                omega[i, a] += weight * gain[i] * torque[i, a]
+                pending += 1
+            taken += 1
+        if quat is not None:
+            if pending > 0:
+                advance_rotation(quat, omega, gain, torque, hold, pending, dt)
+        return taken
+
+    return advance_loop

@@ -1,0 +1,1 @@
+"""Many runs: sweeps, studies (Monte Carlo, Sobol'), benchmarks, their reports."""
