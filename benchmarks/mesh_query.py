@@ -1,5 +1,5 @@
 """Mesh contact query: the triangle hierarchy with exact closest points (what bulletnet uses,
-:func:`bulletnet.kernels.contact.mesh_distance`) against a precomputed distance field (signed
+:func:`bulletnet.kernels.geometry.mesh_distance`) against a precomputed distance field (signed
 distances on a regular grid, trilinear interpolation, the interpolant's gradient as normal).
 
 For the CSM mesh (assets/apollo_csm_mesh.toml, 960 triangles) and a finer sphere (20480
@@ -22,7 +22,7 @@ import numpy as np
 from common import output_dir, parser
 
 import bulletnet as bn
-from bulletnet.kernels.contact import debris_distance
+from bulletnet.kernels.geometry import debris_distance
 from bulletnet.model.debris import Part, make_debris
 from bulletnet.solver.contact_stage import debris_geometry
 

@@ -50,7 +50,7 @@ def csm():
 
 def test_samples_are_seeded_and_inside_the_debris(csm):
     # reference: the debris' own signed distance (the contact query), negative inside
-    from bulletnet.kernels.contact import debris_distance
+    from bulletnet.kernels.geometry import debris_distance
     from bulletnet.solver.contact_stage import debris_geometry
 
     debris, samples = csm

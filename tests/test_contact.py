@@ -11,7 +11,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import bulletnet as bn
-from bulletnet.kernels.contact import debris_distance, normal_step
+from bulletnet.kernels.contact import normal_step
+from bulletnet.kernels.geometry import debris_distance
 from bulletnet.model.debris import Debris, Part
 from bulletnet.solver import contact_stage as contact
 

@@ -193,7 +193,7 @@ def test_pybullet_compound_matches_the_parts_at_their_poses():
     from pybullet_utils.bullet_client import BulletClient
 
     from bulletnet.engines.debris_body import collision_shape
-    from bulletnet.kernels.contact import debris_distance
+    from bulletnet.kernels.geometry import debris_distance
     from bulletnet.model.debris import make_debris
     from bulletnet.solver.contact_stage import debris_geometry
 

@@ -13,7 +13,7 @@ import bulletnet as bn
 import bulletnet.model.builder
 import bulletnet.model.debris
 from bulletnet.common.errors import ScenarioError
-from bulletnet.kernels.contact import debris_distance
+from bulletnet.kernels.geometry import debris_distance
 from bulletnet.model.debris import Part, load_debris, make_debris
 from bulletnet.solver import contact_stage as contact
 

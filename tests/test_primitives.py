@@ -11,7 +11,7 @@ import pytest
 
 import bulletnet as bn
 import bulletnet.model.debris
-from bulletnet.kernels.contact import debris_distance
+from bulletnet.kernels.geometry import debris_distance
 from bulletnet.model.debris import Part, make_debris, part_mesh
 from bulletnet.solver import contact_stage as contact
 

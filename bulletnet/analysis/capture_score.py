@@ -34,7 +34,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from ..kernels.contact import debris_distance
+from ..kernels.geometry import debris_distance
 from ..model.debris import Debris, rotation_matrix
 from ..model.scenario import OutcomeRules
 from ..model.topology import perimeter

@@ -1,6 +1,6 @@
 """Triangle-mesh debris parts: loading and checking a mesh file, and the arrays of its
 signed-distance query in the compiled contact loop
-(:func:`~bulletnet.kernels.contact.mesh_distance`).
+(:func:`~bulletnet.kernels.geometry.mesh_distance`).
 
 The query finds the exact closest point on the mesh through a bounding-volume hierarchy of
 its triangles (axis-aligned boxes, split at the median centroid along the longest axis,

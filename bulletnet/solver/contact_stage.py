@@ -1,6 +1,7 @@
 """Contact applied to the net each step: node spheres against the debris and against each
 other, with each pair's parameters (Tables 5-6, friction of Sec. 5). The laws are in
-:mod:`bulletnet.kernels.contact`; this module sets up their arrays and applies them after the
+:mod:`bulletnet.kernels.contact`, the debris' signed distances in
+:mod:`bulletnet.kernels.geometry`; this module sets up their arrays and applies them after the
 integrator's free step (operator splitting: the normal motion of a node in contact is
 replaced by the exact solution of :func:`~bulletnet.kernels.contact.normal_step` with the
 step's other forces, then friction acts on the slip).
@@ -26,16 +27,14 @@ import numba as nb
 import numpy as np
 
 from ..kernels.bending import integrate_rotation
-from ..kernels.contact import (
+from ..kernels.contact import friction_impulse, implicit_normal_step, normal_step
+from ..kernels.geometry import (
     BOX,
     FRUSTUM,
     MESH,
     PART_COLUMNS,
     SPHERE,
     debris_distance,
-    friction_impulse,
-    implicit_normal_step,
-    normal_step,
     quat_matrix,
 )
 from ..model.materials import BODY_CLASSES, contact_table
@@ -70,7 +69,7 @@ class ContactArrays(NamedTuple):
     params: np.ndarray
     """Friction slip [s/kg], Verlet skin [m], normal law (1: implicit, 0: exact), shape (3,)."""
     parts: np.ndarray
-    """Debris parts, one row each (:data:`~bulletnet.kernels.contact.PART_COLUMNS`: shape
+    """Debris parts, one row each (:data:`~bulletnet.kernels.geometry.PART_COLUMNS`: shape
     code, pose in the body frame [-, m], dimensions [m]; :func:`debris_geometry`), shape
     (K, 17)."""
     mesh: MeshArrays
@@ -148,7 +147,7 @@ def pair_tables(s: Scenario, model: NetModel) -> tuple[np.ndarray, ...]:
 
 def debris_geometry(parts) -> tuple[np.ndarray, MeshArrays]:
     """Debris parts (:class:`~bulletnet.model.debris.Part`) as the compiled contact loop reads
-    them: rows (K, :data:`~bulletnet.kernels.contact.PART_COLUMNS`) of shape code, rotation
+    them: rows (K, :data:`~bulletnet.kernels.geometry.PART_COLUMNS`) of shape code, rotation
     from the part frame to the body frame (row-major) [-], the part frame's origin [m] and
     the dimensions [m] (a box's as half edge lengths, a mesh's root node), and the mesh
     parts' :class:`~bulletnet.model.mesh.MeshArrays`."""
