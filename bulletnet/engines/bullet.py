@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.cable import reel
-from ..model.debris import body_origin
+from ..model.debris import OMEGA, QUAT, VELOCITY, body_origin
 from ..model.net import NodeKind
 from ..model.state import NetState
 from ..solver import integrators
@@ -78,8 +78,8 @@ class BulletEngine(Engine):
             shape = (collision_shape(c, self.debris) if self.scenario.contact.enabled
                      else -1)
             self.debris_body = create_body(c, self.debris, body_origin(state.debris, self.debris),
-                                           state.debris[3:7], state.debris[7:10],
-                                           state.debris[10:13], collision_shape=shape)
+                                           state.debris[QUAT], state.debris[VELOCITY],
+                                           state.debris[OMEGA], collision_shape=shape)
             if self.materials is not None:
                 self._set_material(self.debris_body, 0)
         if self.scenario.contact.enabled and not self.scenario.contact.self_contact:

@@ -11,6 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from ..model.debris import (
+    OMEGA,
+    QUAT,
+    VELOCITY,
     Debris,
     body_origin,
     part_mesh,
@@ -96,8 +99,8 @@ class RigidDebris:
         self.debris = debris
         self.client = bullet_client()
         self.client.setGravity(0.0, 0.0, 0.0)
-        self.body = create_body(self.client, debris, body_origin(state, debris), state[3:7],
-                                state[7:10], state[10:13])
+        self.body = create_body(self.client, debris, body_origin(state, debris), state[QUAT],
+                                state[VELOCITY], state[OMEGA])
         self._step = None
 
     def step(self, impulse: np.ndarray, interval: float, state: np.ndarray) -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.debris import COM, OMEGA, QUAT, VELOCITY
 from ..model.state import NetState
 from ..solver import contact_stage as contact
 from ..solver import grid as grid_kernels
@@ -118,8 +119,8 @@ class FastEngine(Engine):
             todo = min(chunk, steps - done)
             self.arm_winches()
             if has_debris:
-                a.com[:], a.quat[0] = state.debris[:3], state.debris[3:7]
-                a.velocity[:], a.omega[0] = state.debris[7:10], state.debris[10:]
+                a.com[:], a.quat[0] = state.debris[COM], state.debris[QUAT]
+                a.velocity[:], a.omega[0] = state.debris[VELOCITY], state.debris[OMEGA]
                 a.impulse[:] = 0.0
             if free:
                 grid_kernels.free_steps(self.implicit)(self.grid, self.views, todo, dt,

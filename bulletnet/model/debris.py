@@ -345,6 +345,11 @@ STATE_SIZE = 13
 """Length of a debris state vector: centre of mass [m] (3), orientation of the body frame,
 quaternion x, y, z, w (4), velocity of the centre of mass [m/s] (3), angular velocity, world
 frame [rad/s] (3)."""
+COM, QUAT, VELOCITY, OMEGA = slice(0, 3), slice(3, 7), slice(7, 10), slice(10, 13)
+"""The fields of a debris state vector, by name: ``state[COM]`` the centre of mass [m] (3,),
+``state[QUAT]`` the body frame's orientation (x, y, z, w) (4,), ``state[VELOCITY]`` the centre
+of mass' velocity [m/s] (3,), ``state[OMEGA]`` the angular velocity, world frame [rad/s]
+(3,)."""
 
 
 def rotation_quaternion(rotation_vector) -> np.ndarray:
@@ -396,7 +401,7 @@ def initial_state(scene, debris: Debris) -> np.ndarray:
 
 def body_origin(state: np.ndarray, debris: Debris) -> np.ndarray:
     """World position [m] (3,) of the body-frame origin of a debris in ``state``."""
-    return state[:3] - rotation_matrix(state[3:7]) @ debris.center_of_mass
+    return state[COM] - rotation_matrix(state[QUAT]) @ debris.center_of_mass
 
 
 def visual_mesh(debris: Debris, sections: int = 48) -> tuple[np.ndarray, np.ndarray]:

@@ -202,12 +202,12 @@ class Recorder:
                   "tension": tension, "shear": shear,
                   "orientation": state.orientation, "angular_velocity": state.angular_velocity}
         if self.debris is not None:
-            from ..model.debris import body_origin
+            from ..model.debris import OMEGA, QUAT, VELOCITY, body_origin
 
             values.update(debris_position=body_origin(state.debris, self.debris),
-                          debris_orientation=state.debris[3:7],
-                          debris_velocity=state.debris[7:10],
-                          debris_angular_velocity=state.debris[10:13])
+                          debris_orientation=state.debris[QUAT],
+                          debris_velocity=state.debris[VELOCITY],
+                          debris_angular_velocity=state.debris[OMEGA])
         if contacts is not None:
             values.update(contact_count=np.count_nonzero(contacts["node_force"]),
                           contact_force=contacts["node_force"].sum(),

@@ -19,7 +19,7 @@ from ..analysis.stability import Limits, analytical_limits
 from ..common.errors import BulletnetError, DivergenceError, ScenarioError
 from ..engines import make_engine
 from ..model.builder import build_model, initial_state
-from ..model.debris import body_origin
+from ..model.debris import COM, QUAT, VELOCITY, body_origin
 from ..model.scenario import Scenario, to_toml
 from ..model.state import NetState
 from ..recording.writer import Recorder
@@ -198,7 +198,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         contacts = engine.contact_loads()
         if wrap_trigger and not engine.winches_started and wrap_fraction(
                 state.position, model.nodes_per_side,
-                state.debris[:3]) >= scenario.closing.trigger_wrap:
+                state.debris[COM]) >= scenario.closing.trigger_wrap:
             engine.start_winches(state.time)
         if recorder is not None:
             recorder.append(state, *engine.thread_loads(state), contacts,
@@ -206,8 +206,8 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         if monitor is None:
             return False
         monitor.observe(state.time, state.position, state.velocity,
-                        body_origin(state.debris, engine.debris), state.debris[3:7],
-                        state.debris[7:10], int(np.count_nonzero(contacts["node_force"])))
+                        body_origin(state.debris, engine.debris), state.debris[QUAT],
+                        state.debris[VELOCITY], int(np.count_nonzero(contacts["node_force"])))
         return monitor.decided and scenario.outcome.stop_when_decided
 
     stop = take_frame()
