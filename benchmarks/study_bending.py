@@ -27,8 +27,8 @@ from common import output_dir, parser
 
 from bulletnet.model.scenario import SCENARIO_DIR
 from bulletnet.studies.report import report
+from bulletnet.studies.runner import dask_client, warm_up
 from bulletnet.studies.study import load_study, read_table, run_study
-from bulletnet.studies.sweep import dask_client, warm_up
 
 
 def timed_study(study, out: Path, **kwargs) -> dict:

@@ -17,7 +17,8 @@ import time
 from common import output_dir, parser
 
 from bulletnet.model.scenario import SCENARIO_DIR
-from bulletnet.studies.sweep import dask_client, load_sweep, run_sweep
+from bulletnet.studies.runner import dask_client
+from bulletnet.studies.sweep import load_sweep, run_sweep
 
 
 def one_pair(spec, out, workers: int) -> dict:

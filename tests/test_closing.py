@@ -106,6 +106,7 @@ def test_winch_reels_at_its_speed_until_stall_then_holds_stall_tension():
                closing__trigger_time=0.0, scene__duration=1.0,
                simulation__integrator="symplectic_euler", simulation__dt=dt)
     engine = FastEngine(s, model)
+    engine.start_winches(0.0)  # what a run's WinchControl does for trigger "time"
     state = NetState(0.0, pos.copy(), np.zeros((3, 3)))
     # T = stall at L_0 = E A L / (E A + stall) = 0.98039 m, reached at t_s = (1.02 - that) / v
     stall_rest = 100.0 / (100.0 + stall)

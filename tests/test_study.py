@@ -365,7 +365,7 @@ def test_capture_study_measures_contact_and_reads_an_outcome(tmp_path):
     # recording's root attribute 'outcome' where it has one.
     import h5py
 
-    from bulletnet.studies.sweep import CAPTURE_MEASURES
+    from bulletnet.studies.measures import CAPTURE_MEASURES
 
     text = """
 scene = "capture"

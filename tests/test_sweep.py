@@ -103,7 +103,7 @@ def test_corner_tension_is_the_corner_threads_with_a_tether_on():
     from types import SimpleNamespace
 
     from bulletnet.model.net import NodeKind, corner_threads
-    from bulletnet.studies.sweep import max_corner_tension
+    from bulletnet.studies.measures import max_corner_tension
 
     model = bn.build_model(bn.load_scenario("capture_closing"))
     corner = corner_threads(model.pairs, model.kind)

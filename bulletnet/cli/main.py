@@ -232,7 +232,8 @@ def cmd_sweep(args) -> int:
     from pathlib import Path
 
     from ..model.scenario import load
-    from ..studies.sweep import load_sweep, plot_sweep, run_sweep, summary_measures, write_table
+    from ..studies.measures import summary_measures
+    from ..studies.sweep import load_sweep, plot_sweep, run_sweep, write_table
 
     _check_workers(args.workers)
     spec = load_sweep(args.sweep)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 
 import numpy as np
 
@@ -48,16 +49,13 @@ def bending_interval(model: NetModel, dt: float, margin: float) -> int:
 
 def winch_cables(scenario: Scenario, model: NetModel) -> CableArrays:
     """The model's closing cables with the scene's winches (reel speed, stall tension; they
-    stop at ``closing.min_length_ratio`` of the initial rest length), armed at
-    ``closing.trigger_time`` with trigger ``time`` (with ``contact``, see
-    :meth:`Engine.arm_winches`)."""
+    stop at ``closing.min_length_ratio`` of the initial rest length), not yet started (the
+    run's :class:`~bulletnet.sim.winch.WinchControl` starts them by the scene's trigger)."""
     cl, count = scenario.closing, model.cable_count
     cables = cable_arrays(model.cable_nodes, model.cable_start, model.cable_rest_length,
                           model.cable_rigidity, model.cable_damping_time,
                           np.full(count, cl.reel_speed), np.full(count, cl.stall_tension),
                           cl.min_length_ratio * model.cable_rest_length)
-    if cl.trigger == "time":
-        cables.start_time[0] = cl.trigger_time
     return cables
 
 
@@ -98,14 +96,14 @@ class Engine(ABC):
         to PyBullet)."""
         self._impulse_time = 0.0
         """Simulated time since the contact impulses were last read [s]."""
+        self.step_hooks: list[Callable[[], None]] = []
+        """Called between steps, in order: each chunk of the fast engine (a debris step), each
+        step of bullet; what must act inside a frame (:mod:`bulletnet.sim.observers`)."""
 
-    def arm_winches(self) -> None:
-        """With the ``contact`` trigger, start the winches ``closing.trigger_delay`` after the
-        first debris contact once there has been one (engines call this between steps)."""
-        cl = self.scenario.closing
-        first = self.contact.arrays.first_contact[0]
-        if cl.trigger == "contact" and first >= 0.0:
-            self.start_winches(first + cl.trigger_delay)
+    def between_steps(self) -> None:
+        """Call the :attr:`step_hooks` (engines call this between steps)."""
+        for hook in self.step_hooks:
+            hook()
 
     @property
     def winches_started(self) -> bool:

@@ -126,7 +126,7 @@ class BulletEngine(Engine):
         mass_over_dt = self.model.mass[:, None] / dt
         first_step = self.steps
         for _ in range(steps):
-            self.arm_winches()
+            self.between_steps()
             reel(state.position, self.arrays.cables,
                  state.time + (self.steps - first_step) * dt, dt)
             quat, omega = self.rotations(state)

@@ -117,7 +117,7 @@ class FastEngine(Engine):
         done = 0
         while done < steps:
             todo = min(chunk, steps - done)
-            self.arm_winches()
+            self.between_steps()
             if has_debris:
                 a.com[:], a.quat[0] = state.debris[COM], state.debris[QUAT]
                 a.velocity[:], a.omega[0] = state.debris[VELOCITY], state.debris[OMEGA]

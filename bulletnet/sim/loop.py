@@ -14,17 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.capture_score import OutcomeMonitor, ScoreGeometry, interior_samples, wrap_fraction
+from ..analysis.capture_score import interior_samples
 from ..analysis.stability import Limits, analytical_limits
 from ..common.errors import BulletnetError, DivergenceError, ScenarioError
 from ..engines import make_engine
 from ..model.builder import build_model, initial_state
-from ..model.debris import COM, QUAT, VELOCITY, body_origin
 from ..model.scenario import Scenario, to_toml
 from ..model.state import NetState
 from ..recording.writer import Recorder
 from .compile_ahead import compile_ahead
-from .profiling import Profile, instrument, step_split
+from .observers import Observer, Outcome, Profiling, Recording, Run
+from .profiling import Profile
+from .winch import WinchControl
 
 MAX_RECORDING_BYTES = 2e9
 """Recordings estimated larger than this [bytes] need ``force`` (or a lower record rate)."""
@@ -173,46 +174,18 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
     engine = make_engine(scenario, model)
     compile_ahead(scenario, engine, state)  # a first run with contact: on both cores
     times = frame_times(scenario.scene.duration, scenario.simulation.record_rate)
-    samples = None if engine.debris is None else interior_samples(engine.debris)
-    monitor = (OutcomeMonitor(scenario.outcome, ScoreGeometry.of(
-        model, samples, engine.debris.center_of_mass)) if scenario.outcome.enabled else None)
-    recorder = None
-    if out is not None:
-        recorder = Recorder(out, model, {
-            "scenario": to_toml(scenario),
-            "engine": engine.name,
-            "integrator": engine.integrator,
-            "dt": engine.dt,
-            "record_rate": scenario.simulation.record_rate,
-            "bending": scenario.bending.enabled,
-            "bulletnet_version": _version(),
-        }, oriented=state.oriented, debris=engine.debris, interior_samples=samples,
-            contact=scenario.contact.enabled)
-
-    wrap_trigger = scenario.closing.enabled and scenario.closing.trigger == "wrap"
+    observers = _observers(scenario, model, engine, state, out, profile)
+    view = Run(scenario, model, engine, state)
 
     def take_frame() -> bool:
-        """Start the winches if the wrap trigger is reached, record the frame just reached and
-        show it to the monitor; True: the run stops here (its outcome is decided and the scene
-        asks to stop then)."""
-        contacts = engine.contact_loads()
-        if wrap_trigger and not engine.winches_started and wrap_fraction(
-                state.position, model.nodes_per_side,
-                state.debris[COM]) >= scenario.closing.trigger_wrap:
-            engine.start_winches(state.time)
-        if recorder is not None:
-            recorder.append(state, *engine.thread_loads(state), contacts,
-                            engine.cable_loads())
-        if monitor is None:
-            return False
-        monitor.observe(state.time, state.position, state.velocity,
-                        body_origin(state.debris, engine.debris), state.debris[QUAT],
-                        state.debris[VELOCITY], int(np.count_nonzero(contacts["node_force"])))
-        return monitor.decided and scenario.outcome.stop_when_decided
+        """Show the frame just reached to every observer; True: one stops the run here."""
+        view.contacts = engine.contact_loads()
+        stops = [observer.frame(view) for observer in observers]
+        return any(stops)
 
     stop = take_frame()
-    if profile is not None:
-        instrument(profile, engine, recorder, monitor)
+    for observer in observers:
+        observer.start(view)
     limit = speed_limit(scenario, state)
     start_position = state.position.copy()
     status, message, error = "running", "", None
@@ -240,31 +213,46 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         if status == "running":  # an unexpected error: keep the frames, say so
             status, message = "interrupted", "stopped by an internal error"
         stats = engine.stats()
-        first = engine.contact_loads()["first_contact"]
-        outcome_attrs = {}
-        if monitor is not None:
-            monitor.finish(status == "completed")
-            outcome_attrs = {"outcome": monitor.outcome, "outcome_time_s": monitor.time,
-                             "outcome_reason": monitor.reason}
-        if profile is not None:
-            profile.stop()
-            if status == "completed":
-                profile.split = step_split(engine, state)
+        attrs = {"message": message, "wall_time_s": wall}
+        with _signals_deferred():  # a second Ctrl-C must not leave the recording half written
+            for observer in sorted(observers, key=lambda o: o.finish_order):
+                observer.finish(view, status, attrs)
         engine.close()
-        path = None
-        frames = 0
-        if recorder is not None:
-            frames = recorder.frames
-            with _signals_deferred():
-                contact_attrs = ({"first_contact_s": first[0], "first_self_contact_s": first[1]}
-                                 if scenario.contact.enabled else {})
-                path = recorder.close(status, message, wall_time_s=wall, **contact_attrs,
-                                      **outcome_attrs,
-                                      **{f"stats_{k}": v for k, v in stats.items()})
     if error is not None:
         raise error
-    return RunResult(path=path, status=status, state=state, wall_time_s=wall, stats=stats,
-                     frames=frames, **outcome_attrs)  # the recording's outcome attributes
+    recording = next((o for o in observers if isinstance(o, Recording)), None)
+    return RunResult(path=None if recording is None else recording.path, status=status,
+                     state=state, wall_time_s=wall, stats=stats,
+                     frames=0 if recording is None else recording.recorder.frames,
+                     **{k: attrs[k] for k in ("outcome", "outcome_time_s", "outcome_reason")
+                        if k in attrs})
+
+
+def _observers(scenario: Scenario, model, engine, state: NetState,
+               out: str | os.PathLike | None, profile: Profile | None) -> list[Observer]:
+    """The observers of a run, in the order they see each frame: the winch control (its
+    wrap trigger acts before the frame is recorded), the recorder, the outcome monitor, the
+    profiler."""
+    observers: list[Observer] = []
+    if scenario.closing.enabled:
+        observers.append(WinchControl(scenario))
+    samples = None if engine.debris is None else interior_samples(engine.debris)
+    if out is not None:
+        observers.append(Recording(Recorder(out, model, {
+            "scenario": to_toml(scenario),
+            "engine": engine.name,
+            "integrator": engine.integrator,
+            "dt": engine.dt,
+            "record_rate": scenario.simulation.record_rate,
+            "bending": scenario.bending.enabled,
+            "bulletnet_version": _version(),
+        }, oriented=state.oriented, debris=engine.debris, interior_samples=samples,
+            contact=scenario.contact.enabled)))
+    if scenario.outcome.enabled:
+        observers.append(Outcome(scenario, model, engine, samples))
+    if profile is not None:
+        observers.append(Profiling(profile, list(observers)))
+    return observers
 
 
 def _version() -> str:

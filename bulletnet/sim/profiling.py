@@ -79,15 +79,14 @@ IO = "I/O (HDF5 flush)"
 OUTCOME = "capture score (outcome monitor)"
 
 
-def instrument(profile: Profile, engine, recorder, monitor=None) -> None:
-    """Time the run's sections (see the module doc) on these instances."""
+def instrument(profile: Profile, engine, timed=()) -> None:
+    """Time the run's sections (see the module doc): the engine's, and each (object, method
+    name, section) of ``timed`` (what the run's observers name,
+    :attr:`bulletnet.sim.observers.Observer.timed`)."""
     profile.wrap(engine, "advance", ENGINE)
     profile.wrap(engine, "thread_loads", LOADS)
-    if recorder is not None:
-        profile.wrap(recorder, "append", RECORDING)
-        profile.wrap(recorder, "flush", IO)
-    if monitor is not None:
-        profile.wrap(monitor, "observe", OUTCOME)
+    for obj, method, section in timed:
+        profile.wrap(obj, method, section)
 
 
 @nb.njit(cache=True, error_model="numpy")

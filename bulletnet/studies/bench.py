@@ -216,19 +216,29 @@ def run_grid(scene: Scenario, methods: Sequence[Method], dts: Sequence[float],
 
 
 def _grid_point(scene, method, dt, reference, workdir, measures, repeats) -> dict:
+    """One (method, step) point of the grid: the run ``repeats`` times
+    (:func:`~bulletnet.studies.runner.run_scene`), its median wall time, and each of
+    ``measures`` of its recording against the reference."""
+    from .runner import run_scene
+
     point = method_scene(scene, method, dt)
     label = "reference" if dt is None else f"{dt:.3g}"
     path = workdir / f"{method.name.replace(':', '_')}_{label}.h5"
     row = {"method": method.name, "engine": method.engine,
            "integrator": None if method.adaptive else method.integrator,
            "dt_s": dt, "simulated_s": point.scene.duration}
-    try:
-        wall, walls, result = timed(point, path, repeats)
-    except DivergenceError as exc:
-        return row | {"stable": False, "status": "diverged", "message": str(exc),
-                      "steps": None, "wall_s": None, "wall_s_all": [],
-                      "real_time_factor": None}
-    row |= {"stable": True, "status": result.status, "steps": result.stats.get("steps"),
+    walls = []
+    for _ in range(repeats):
+        run = run_scene(point, out=path, measures={})
+        if run["status"] == "diverged":
+            return row | {"stable": False, "status": "diverged", "message": run["message"],
+                          "steps": None, "wall_s": None, "wall_s_all": [],
+                          "real_time_factor": None}
+        if run["status"] != "completed":
+            raise ScenarioError(f"{method.name} at {label}: {run['message']}")
+        walls.append(run["wall_s"])
+    wall = statistics.median(walls)
+    row |= {"stable": True, "status": run["status"], "steps": run["steps"],
             "wall_s": wall, "wall_s_all": walls,
             "real_time_factor": point.scene.duration / wall}
     run_rec = open_recording(path)

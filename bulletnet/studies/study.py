@@ -1,5 +1,5 @@
 """Studies: Monte Carlo and Sobol' designs over a scene (or a Python function), run on Dask
-(:func:`bulletnet.studies.sweep.fan_out`), one row per run appended to ``DIR/runs.csv`` as it
+(:func:`bulletnet.studies.runner.fan_out`), one row per run appended to ``DIR/runs.csv`` as it
 finishes; a study stopped in any way resumes where it stopped.
 
 A study file (TOML; ``docs/studies.md`` has the whole format)::
@@ -50,18 +50,9 @@ from pathlib import Path
 import numpy as np
 
 from ..common.errors import BulletnetError, ScenarioError
-from .sweep import (
-    base_scene,
-    build_variants,
-    estimated_cost,
-    fan_out,
-    kernel_kind,
-    plan_table,
-    read_plan,
-    run_scene,
-    summary_measures,
-    write_table,
-)
+from .measures import summary_measures
+from .runner import estimated_cost, fan_out, kernel_kind, run_scene
+from .sweep import base_scene, build_variants, plan_table, read_plan, write_table
 
 DESIGNS = ("random", "sobol")
 

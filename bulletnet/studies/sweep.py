@@ -20,116 +20,26 @@ pyarrow is installed) holds the variant's parameters, :data:`SUMMARY_MEASURES` o
 recording, wall time [s], steps and status; ``OUT/figures/`` each measure against each swept
 parameter.
 
-The parts a study (:mod:`bulletnet.studies.study`) shares with a sweep live here: reading a plan
-file (:func:`read_plan`), building and validating its variants (:func:`build_variants`), running
-one scene into summary measures (:func:`run_scene`), and fanning calls out over Dask with a
-row for a lost worker (:func:`fan_out`).
+A study (:mod:`bulletnet.studies.study`) shares with a sweep the reading of a plan file
+(:func:`read_plan`) and the building and validating of its variants (:func:`build_variants`);
+both run scenes with :mod:`bulletnet.studies.runner` and summarize them with
+:mod:`bulletnet.studies.measures`.
 """
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import itertools
-import logging
 import os
-import signal
-import tempfile
-import time
 import tomllib
-from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..common.errors import BulletnetError, ScenarioError
-from ..recording.reader import Recording
-
-
-def final_mouth_area(rec: Recording) -> float:
-    """Mouth area at the last frame [m^2]."""
-    from ..analysis.metrics import mouth_area
-
-    return float(mouth_area(rec)[-1])
-
-
-def deployed_90(rec: Recording) -> float | None:
-    """Time to 90 % deployed [s] (mouth area >= 0.9 L^2), None if not within the run."""
-    from ..analysis.metrics import deployed_time
-
-    return deployed_time(rec, 0.9)
-
-
-def max_corner_tension(rec: Recording) -> float:
-    """Largest tension in any corner thread over the recorded frames [N]."""
-    from ..model.net import corner_threads
-
-    return float(rec.tension[:, corner_threads(rec.pairs, rec.kind)].max())
-
-
-def max_wrap(rec: Recording) -> float:
-    """Largest wrap of the debris by the net over the recorded frames [-]
-    (:func:`bulletnet.analysis.metrics.wrap`)."""
-    from ..analysis.metrics import wrap
-
-    return float(wrap(rec).max())
-
-
-def max_nodes_in_contact(rec: Recording) -> int:
-    """Most nodes touching the debris in one frame interval [-]."""
-    from ..analysis.metrics import nodes_in_contact
-
-    return int(nodes_in_contact(rec).max())
-
-
-def outcome(rec: Recording) -> str | None:
-    """The capture's outcome, where the recording keeps one (root attribute ``outcome``);
-    else None."""
-    value = rec.attrs.get("outcome")
-    return None if value is None else str(value)
-
-
-def _first_contact(rec: Recording) -> float | None:
-    from ..analysis.metrics import first_contact_time
-
-    return first_contact_time(rec)
-
-
-def _leave(rec: Recording) -> float | None:
-    from ..analysis.metrics import leave_time
-
-    return leave_time(rec)
-
-
-Measures = dict[str, Callable[[Recording], float | int | str | None]]
-"""Summary measures of a recording: column name (with its unit) -> function of the recording;
-None where a run never reaches it."""
-
-SUMMARY_MEASURES: Measures = {
-    "final_mouth_area_m2": final_mouth_area,
-    "deployed_90pct_s": deployed_90,
-    "max_corner_tension_N": max_corner_tension,
-}
-"""Summary measures of a deployment's recording; keys carry the unit."""
-
-CAPTURE_MEASURES: Measures = {
-    "first_contact_s": _first_contact,
-    "max_wrap": max_wrap,
-    "max_nodes_in_contact": max_nodes_in_contact,
-    "leave_s": _leave,
-    "outcome": outcome,
-}
-"""Summary measures of a capture's recording (a scene with debris and contact): first
-contact [s], largest wrap [-], most nodes in contact [-], leave time [s] (None: still on the
-debris at the end) and the outcome (None until the recording keeps one)."""
-
-
-def summary_measures(scenario) -> Measures:
-    """The measures that fit a scene: :data:`CAPTURE_MEASURES` with debris and contact, else
-    :data:`SUMMARY_MEASURES`."""
-    return CAPTURE_MEASURES if scenario.debris.asset and scenario.contact.enabled \
-        else SUMMARY_MEASURES
+from ..common.errors import ScenarioError
+from .measures import SUMMARY_MEASURES, Measures
+from .runner import estimated_cost, fan_out, run_scene
 
 
 @dataclass(frozen=True)
@@ -235,40 +145,6 @@ def plan_table(value, path: Path, name: str) -> dict:
     return value
 
 
-def run_scene(scene: str, overrides: dict, out: str | None = None,
-              measures: Measures | None = None) -> dict:
-    """Run ``scene`` with ``overrides`` into the recording ``out`` (None: a temporary file,
-    deleted once measured) and summarize it: ``status``, ``message``, ``wall_s`` [s],
-    ``steps`` and each of ``measures`` (default: :func:`summary_measures` of the scene).
-    Never raises for a failing run: its status says what happened (``diverged``, ``error``)."""
-    from ..model.scenario import load
-    from ..recording.reader import open_recording
-    from ..sim.loop import run
-
-    row = {"status": "error", "message": "", "wall_s": None, "steps": None}
-    values = {}
-    start = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="bulletnet-") as scratch:
-        path = out or os.path.join(scratch, "run.h5")
-        try:
-            scenario = load(scene, overrides)
-            measures = summary_measures(scenario) if measures is None else measures
-            values = dict.fromkeys(measures)
-            result = run(scenario, path, force=True)
-            row |= {"status": result.status, "steps": result.stats.get("steps")}
-            row["wall_s"] = time.perf_counter() - start
-            rec = open_recording(path)
-            values = {name: measure(rec) for name, measure in measures.items()}
-        except BulletnetError as exc:  # a diverged run keeps its recording (status 'diverged')
-            row |= {"status": "diverged" if exc.exit_code == 3 else "error",
-                    "message": str(exc)}
-        except Exception as exc:  # noqa: BLE001 (one bad variant must not stop the sweep)
-            row |= {"status": "error", "message": f"{type(exc).__name__}: {exc}"}
-    if row["wall_s"] is None:
-        row["wall_s"] = time.perf_counter() - start
-    return row | values
-
-
 def run_variant(index: int, scene: str, overrides: dict, out: str,
                 measures: Measures | None = None) -> dict:
     """Run one variant into ``out`` and summarize it (:func:`run_scene`): a row of the sweep
@@ -276,73 +152,6 @@ def run_variant(index: int, scene: str, overrides: dict, out: str,
     row = run_scene(scene, overrides, out, measures)
     head = {k: row.pop(k) for k in ("status", "message", "wall_s", "steps")}
     return {"variant": index, **overrides, **head, "recording": out, **row}
-
-
-def kernel_kind(scenario) -> tuple:
-    """What decides the compiled kernels a run loads: engine, integrator, kernels (grid or
-    pairs), bending, contact, closing cables."""
-    return (scenario.simulation.engine, scenario.simulation.integrator,
-            scenario.simulation.kernels, scenario.bending.enabled, scenario.contact.enabled,
-            scenario.closing.enabled)
-
-
-def warm_up(scene: str, variants: tuple[dict, ...]) -> None:
-    """Load the compiled kernels the variants use in this process (a short run of the first
-    variant of each :func:`kernel_kind`, :func:`bulletnet.sim.loop.warm_up`), so that no
-    variant's wall time includes it."""
-    from ..model.scenario import load
-    from ..sim.loop import warm_up as warm_up_scene
-
-    seen = set()
-    for overrides in variants:
-        variant = load(scene, overrides)
-        if kernel_kind(variant) not in seen:
-            seen.add(kernel_kind(variant))
-            warm_up_scene(variant)
-
-
-def estimated_cost(scene: str, overrides: dict) -> float:
-    """Relative cost of a variant [-]: nodes times steps, doubled with bending (its kernels
-    take about that much longer); for ordering work, not a prediction of seconds."""
-    from ..model.scenario import load
-
-    s = load(scene, overrides)
-    steps = s.scene.duration / s.simulation.step if s.simulation.step > 0 else 1.0
-    return (s.net.nodes_per_side ** 2 + 4) * steps * (2.0 if s.bending.enabled else 1.0)
-
-
-def fan_out(fn: Callable[..., dict], jobs: list[tuple], lost: Callable[[tuple, str], dict], *,
-            scheduler: str | None = None, workers: int = 2, serial: bool = False,
-            warm: tuple[str, tuple[dict, ...]] | None = None,
-            costs: list[float] | None = None) -> Iterator[dict]:
-    """Call ``fn(*job)`` for every job and yield each result as it finishes: on Dask (a local
-    cluster of ``workers`` processes, or ``scheduler``), or one after another in this process
-    with ``serial``. ``fn`` must not raise (it reports a failure in its result); a job whose
-    worker died or was lost yields ``lost(job, message)`` instead, and the others go on.
-    ``warm``: (scene, variants) whose kernels each worker loads first (:func:`warm_up`);
-    ``costs``: the jobs' relative costs, handed out longest first, so that no long job is left
-    running alone at the end."""
-    if serial:
-        if warm is not None:
-            warm_up(*warm)
-        for job in jobs:
-            yield fn(*job)
-        return
-    order = sorted(range(len(jobs)), key=lambda k: -costs[k]) if costs else range(len(jobs))
-    with dask_client(scheduler, workers) as client:
-        from dask.distributed import as_completed
-
-        if warm is not None:
-            client.run(warm_up, *warm)
-        futures = {client.submit(fn, *jobs[k], pure=False, priority=len(jobs) - rank): k
-                   for rank, k in enumerate(order)}
-        for future in as_completed(futures):
-            try:
-                result = future.result()
-            except Exception as exc:  # noqa: BLE001 (a lost worker costs its job, no more)
-                result = lost(jobs[futures[future]], f"{type(exc).__name__}: {exc}")
-            future.release()
-            yield result
 
 
 def run_sweep(sweep: Sweep, out: Path, scheduler: str | None = None, workers: int = 2,
@@ -368,50 +177,6 @@ def run_sweep(sweep: Sweep, out: Path, scheduler: str | None = None, workers: in
         if log is not None:
             log(_row_text(rows[-1]))
     return sorted(rows, key=lambda r: r["variant"])
-
-
-@contextlib.contextmanager
-def dask_client(scheduler: str | None, workers: int):
-    """A Dask client on ``scheduler``, or on a local cluster of ``workers`` processes (one
-    thread each: the compiled kernels hold the GIL), closed on exit. The local scheduler hands
-    a worker one job at a time and does not retry a job whose worker died (it would likely
-    kill the next one too): a lost worker costs one job. A remote scheduler follows its own
-    ``distributed.scheduler.allowed-failures`` (Dask's default retries a job 3 times)."""
-    try:
-        import dask
-        from dask.distributed import Client, LocalCluster
-    except ImportError:
-        raise ScenarioError(
-            "sweeps and studies need dask.distributed: pip install 'bulletnet[sweep]'") from None
-    if scheduler is not None:
-        try:
-            client = Client(scheduler, timeout="10s")
-        except OSError as exc:
-            raise ScenarioError(f"--scheduler {scheduler}: cannot connect: {exc}") from None
-        with client:
-            yield client
-        return
-    config = {"distributed.scheduler.allowed-failures": 0,
-              "distributed.scheduler.worker-saturation": 1.0}
-    with dask.config.set(config), LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True,
-            dashboard_address=None) as cluster, Client(cluster) as client:
-        client.run(_quiet_worker)
-        try:
-            yield client
-        except KeyboardInterrupt:
-            # closing the cluster mid-run logs each cancelled job and each worker it has to
-            # stop: the caller says it was interrupted, in one line
-            logging.getLogger("distributed").setLevel(logging.CRITICAL)
-            raise
-
-
-def _quiet_worker() -> None:
-    """Make this local worker process ignore Ctrl-C, which reaches it too (one process group)
-    while the driver stops it, and log Dask's errors only (not its warnings about jobs
-    cancelled as the cluster closes)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    logging.getLogger("distributed").setLevel(logging.ERROR)
 
 
 def _row_text(row: dict) -> str:

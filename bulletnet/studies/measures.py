@@ -1,0 +1,96 @@
+"""Summary measures of a recording for sweeps and studies: a column name (with its unit) ->
+a function of the recording (:data:`Measures`); the deployment's and the capture's sets."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from ..recording.reader import Recording
+
+
+def final_mouth_area(rec: Recording) -> float:
+    """Mouth area at the last frame [m^2]."""
+    from ..analysis.metrics import mouth_area
+
+    return float(mouth_area(rec)[-1])
+
+
+def deployed_90(rec: Recording) -> float | None:
+    """Time to 90 % deployed [s] (mouth area >= 0.9 L^2), None if not within the run."""
+    from ..analysis.metrics import deployed_time
+
+    return deployed_time(rec, 0.9)
+
+
+def max_corner_tension(rec: Recording) -> float:
+    """Largest tension in any corner thread over the recorded frames [N]."""
+    from ..model.net import corner_threads
+
+    return float(rec.tension[:, corner_threads(rec.pairs, rec.kind)].max())
+
+
+def max_wrap(rec: Recording) -> float:
+    """Largest wrap of the debris by the net over the recorded frames [-]
+    (:func:`bulletnet.analysis.metrics.wrap`)."""
+    from ..analysis.metrics import wrap
+
+    return float(wrap(rec).max())
+
+
+def max_nodes_in_contact(rec: Recording) -> int:
+    """Most nodes touching the debris in one frame interval [-]."""
+    from ..analysis.metrics import nodes_in_contact
+
+    return int(nodes_in_contact(rec).max())
+
+
+def outcome(rec: Recording) -> str | None:
+    """The capture's outcome, where the recording keeps one (root attribute ``outcome``);
+    else None."""
+    value = rec.attrs.get("outcome")
+    return None if value is None else str(value)
+
+
+def _first_contact(rec: Recording) -> float | None:
+    from ..analysis.metrics import first_contact_time
+
+    return first_contact_time(rec)
+
+
+def _leave(rec: Recording) -> float | None:
+    from ..analysis.metrics import leave_time
+
+    return leave_time(rec)
+
+
+Measures = dict[str, Callable[[Recording], float | int | str | None]]
+"""Summary measures of a recording: column name (with its unit) -> function of the recording;
+None where a run never reaches it."""
+
+
+SUMMARY_MEASURES: Measures = {
+    "final_mouth_area_m2": final_mouth_area,
+    "deployed_90pct_s": deployed_90,
+    "max_corner_tension_N": max_corner_tension,
+}
+"""Summary measures of a deployment's recording; keys carry the unit."""
+
+
+CAPTURE_MEASURES: Measures = {
+    "first_contact_s": _first_contact,
+    "max_wrap": max_wrap,
+    "max_nodes_in_contact": max_nodes_in_contact,
+    "leave_s": _leave,
+    "outcome": outcome,
+}
+"""Summary measures of a capture's recording (a scene with debris and contact): first
+contact [s], largest wrap [-], most nodes in contact [-], leave time [s] (None: still on the
+debris at the end) and the outcome (None until the recording keeps one)."""
+
+
+def summary_measures(scenario) -> Measures:
+    """The measures that fit a scene: :data:`CAPTURE_MEASURES` with debris and contact, else
+    :data:`SUMMARY_MEASURES`."""
+    return CAPTURE_MEASURES if scenario.debris.asset and scenario.contact.enabled \
+        else SUMMARY_MEASURES
+
