@@ -8,7 +8,7 @@ import os
 import signal
 import threading
 import time as _time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -158,7 +158,7 @@ def warm_up(scenario: Scenario) -> float:
 
 def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         progress: Progress | None = None, force: bool = False,
-        profile: Profile | None = None) -> RunResult:
+        profile: Profile | None = None, observers: Sequence[Observer] = ()) -> RunResult:
     """Simulate ``scenario``; record to ``out`` (HDF5) if given; with ``profile``, time the
     run's sections into it (:mod:`bulletnet.sim.profiling`).
 
@@ -166,6 +166,8 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
     error unless ``force``. On Ctrl-C the recording is closed with
     status ``interrupted`` and KeyboardInterrupt is re-raised; on divergence with status
     ``diverged`` and :class:`DivergenceError` is re-raised. Every frame so far is kept.
+    ``observers`` (:class:`~bulletnet.sim.observers.Observer`) watch the run after the
+    built-in ones: each sees every frame and may stop the run there.
     With ``[outcome]`` on, each frame is judged (:mod:`bulletnet.analysis.capture_score`) and the
     recording gets ``outcome`` and ``outcome_time_s``; with ``stop_when_decided`` the run
     ends, ``completed``, at the frame that decides it."""
@@ -174,7 +176,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
     engine = make_engine(scenario, model)
     compile_ahead(scenario, engine, state)  # a first run with contact: on both cores
     times = frame_times(scenario.scene.duration, scenario.simulation.record_rate)
-    observers = _observers(scenario, model, engine, state, out, profile)
+    observers = _observers(scenario, model, engine, state, out, profile) + list(observers)
     view = Run(scenario, model, engine, state)
 
     def take_frame() -> bool:
