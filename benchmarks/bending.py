@@ -17,7 +17,7 @@ import json
 import statistics
 
 import numpy as np
-from common import ERROR_KEYS, errors, output_dir, parser, timed
+from common import ERROR_KEYS, Yardsticks, errors, output_dir, parser, timed
 
 import bulletnet as bn
 from bulletnet.analysis.plots import plot_recordings
@@ -34,7 +34,9 @@ def main() -> None:
     # plain and bending runs interleaved, so that the machine's drift hits both alike; the
     # cost of bending is the median of the per-pair ratios
     runs, walls = {}, {"plain": [], "bending": []}
+    yard = Yardsticks()
     for _ in range(args.repeats):
+        yard.time()
         for name, bending in (("plain", False), ("bending", True)):
             scene = base.with_overrides({"bending.enabled": bending})
             wall, _, result = timed(scene, out / f"fast_{name}.h5")
@@ -42,8 +44,10 @@ def main() -> None:
             runs[name] = result
     for name in walls:
         doc[f"fast_{name}"] = {"wall_s_median": statistics.median(walls[name]),
-                               "wall_s_all": walls[name], "steps": runs[name].stats["steps"]}
+                               "wall_s_all": walls[name], "steps": runs[name].stats["steps"],
+                               **yard.ratios(statistics.median(walls[name]))}
         runs[name] = bn.open_recording(runs[name].path)
+    doc["yardsticks"] = yard.doc()
     doc["fast_bending_cost_ratio"] = statistics.median(
         b / p for p, b in zip(walls["plain"], walls["bending"], strict=True))
 

@@ -21,7 +21,7 @@ import json
 import time
 
 import numpy as np
-from common import output_dir, parser
+from common import Yardsticks, output_dir, parser
 
 import bulletnet as bn
 from bulletnet.analysis.plots import plot_recordings
@@ -59,15 +59,19 @@ def main() -> None:
                      "gone_by_s": 82.0, "vortex_wall_s": {"bending": 4800.0,
                                                           "no_bending": 540.0}}}
 
+    yard = Yardsticks()  # timed before each capture run and at the end
     runs = {}
     for law in ("exact", "implicit"):
         for bending in (False, True):
             key = f"{law}_{'bending' if bending else 'no_bending'}"
+            yard.time()
             wall, rec, status = run({"contact.model": law, "bending.enabled": bending},
                                     out / f"capture_{key}.h5")
             runs[key] = {"wall_s": wall, "status": status,
                          "real_time_factor": rec.time[-1] / wall, **measures(rec)}
             print(key, json.dumps(runs[key]), flush=True)
+    for row in runs.values():
+        row.update(yard.ratios(row["wall_s"]))
     doc["capture_120s"] = runs
     plot_recordings(bn.open_recording(out / "capture_implicit_no_bending.h5"),
                     bn.open_recording(out / "capture_implicit_bending.h5"), out / "figures",
@@ -109,6 +113,8 @@ def main() -> None:
             "rmse_pos_max", "rmse_pos_avg", "rmse_vel_max", "rmse_vel_avg")}
     doc["head_on_fast_vs_bullet"] = head_on
     print(json.dumps(head_on, indent=1))
+    yard.time()
+    doc["yardsticks"] = yard.doc()
     (out / "capture.json").write_text(json.dumps(doc, indent=1))
 
 

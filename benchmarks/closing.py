@@ -6,8 +6,9 @@ For each run: the outcome and when it was decided, the smallest enclosed fractio
 largest mouth opening from the decision to the end (a capture that holds keeps E and M within
 the rules), the largest rise of the mechanical energy above its start net of the winches'
 work (a sound model has none), the winches' work, the cables' largest tension, and the wall
-time, also as a ratio to the baseline measured in the same run (the pair-list path on the
-plain 3 s deployment, symplectic Euler at 1e-6 s; the machine's speed drifts between days).
+time, also as a ratio to the frozen yardstick timed in the same run (``yardstick.py``, the
+plain loop of the 3 s deployment, REPEATS times before the runs and once after; the machine's
+speed drifts between days).
 Then the closing capture stopped once decided (``outcome.stop_when_decided``): its wall time.
 
 Writes OUT/closing.json (copy it to benchmarks/results/) and docs/figures/closing.png.
@@ -17,12 +18,11 @@ Usage: python benchmarks/closing.py [OUT] [--repeats N]
 from __future__ import annotations
 
 import json
-import statistics
 import time
 from pathlib import Path
 
 import numpy as np
-from common import output_dir, parser
+from common import Yardsticks, output_dir, parser
 
 import bulletnet as bn
 
@@ -35,7 +35,7 @@ def timed_run(scene: str, overrides: dict, path) -> tuple[float, bn.RunResult]:
     return time.perf_counter() - start, result
 
 
-def measures(rec: bn.Recording, wall: float, baseline: float) -> dict:
+def measures(rec: bn.Recording, wall: float, yard: Yardsticks) -> dict:
     scores, judged = bn.metrics.capture_outcome(rec)
     after = rec.time >= judged.time if judged.decided else np.zeros(rec.time.size, bool)
     gain = bn.metrics.energy(rec) - bn.metrics.energy(rec)[0] - bn.metrics.winch_work(rec)
@@ -44,7 +44,7 @@ def measures(rec: bn.Recording, wall: float, baseline: float) -> dict:
            "leave_s": bn.metrics.leave_time(rec),
            "max_capture_quality": float(scores[:, 2].max()),
            "max_energy_gain_net_of_winch_work_J": float(gain.max()),
-           "wall_s": wall, "ratio_to_baseline": wall / baseline}
+           "wall_s": wall, **yard.ratios(wall)}
     if after.any():
         out.update(min_enclosed_after_decision=float(scores[after, 0].min()),
                    max_mouth_opening_after_decision=float(scores[after, 1].max()),
@@ -91,18 +91,10 @@ def plot(recordings: dict, path: Path) -> None:
 def main() -> None:
     args = parser(__doc__).parse_args()
     out = output_dir(args)
-    baseline_scene = bn.load_scenario("deployment", {"simulation.kernels": "pairs"})
-    bn.run(baseline_scene.with_overrides({"scene.duration": 0.001}), out / "warm.h5",
-           force=True)
-    walls = []
+    yard = Yardsticks()
     for _ in range(args.repeats):
-        start = time.perf_counter()
-        bn.run(baseline_scene, out / "baseline.h5", force=True)
-        walls.append(time.perf_counter() - start)
-    baseline = statistics.median(walls)
-    doc = {"bulletnet_version": bn.__version__, "baseline_wall_s": baseline,
-           "baseline": "pair-list path, plain 3 s deployment, symplectic Euler at 1e-6 s",
-           "runs": {}}
+        yard.time()
+    doc = {"bulletnet_version": bn.__version__, "runs": {}}
     recordings = {}
     for closing in (False, True):
         for bending in (False, True):
@@ -112,18 +104,21 @@ def main() -> None:
                                 {"bending.enabled": bending}, path)
             rec = bn.open_recording(path)
             recordings[(closing, bending)] = rec
-            doc["runs"][name] = measures(rec, wall, baseline)
+            doc["runs"][name] = measures(rec, wall, yard)
             if closing:
                 stop_wall, result = timed_run(
                     "capture_closing", {"bending.enabled": bending,
                                         "outcome.stop_when_decided": True}, None)
                 doc["runs"][name].update(stopped_wall_s=stop_wall,
                                          stopped_at_s=result.state.time,
-                                         stopped_ratio_to_baseline=stop_wall / baseline)
+                                         stopped_x_yardstick=yard.ratios(stop_wall)[
+                                             "x_yardstick"])
             print(name, json.dumps(doc["runs"][name]))
+    yard.time()  # after the runs too: the machine's drift over the benchmark
+    doc["yardsticks"] = yard.doc()
     (out / "closing.json").write_text(json.dumps(doc, indent=1))
     plot(recordings, FIGURE)
-    print(f"baseline {baseline:.2f} s; wrote {out / 'closing.json'} and {FIGURE}")
+    print(f"yardstick {yard.median:.2f} s; wrote {out / 'closing.json'} and {FIGURE}")
 
 
 if __name__ == "__main__":

@@ -1,15 +1,97 @@
-"""What the benchmarks share: timing runs (:func:`bulletnet.studies.bench.timed`) and the Eq. 14
-error summary."""
+"""What the benchmarks share: timing runs (:func:`bulletnet.studies.bench.timed`), the two
+yardsticks every speed figure is a ratio to (:class:`Yardsticks`) and the Eq. 14 error
+summary."""
 
 from __future__ import annotations
 
 import argparse
+import statistics
+import time
 from pathlib import Path
+
+import yardstick
 
 import bulletnet as bn
 from bulletnet.studies.bench import ERROR_KEYS, rmse_measure, timed
 
-__all__ = ["ERROR_KEYS", "errors", "output_dir", "parser", "timed"]
+__all__ = ["ERROR_KEYS", "Yardsticks", "errors", "output_dir", "parser", "timed"]
+
+DEPLOYMENT_THREADS = 2 * 11 * 10 + 4
+"""Threads of the paper's Ns = 11 net (the yardstick's) [-]."""
+
+
+def sqrt_division_bound(threads: int = DEPLOYMENT_THREADS, repeats: int = 200000) -> float:
+    """The machine's throughput bound of a thread's unavoidable arithmetic: one square root
+    and one reciprocal per thread, over ``threads`` contiguous values, vectorized as the
+    stencils are [ns per thread] (best of 7)."""
+    import numba as nb
+    import numpy as np
+
+    @nb.njit(error_model="numpy")
+    def kernel(x, y, z, out, reps):
+        for _ in range(reps):
+            for i in range(x.shape[0]):
+                length = np.sqrt(x[i] * x[i] + y[i] * y[i] + z[i] * z[i])
+                out[i] = 1.0 / length + length
+
+    rng = np.random.default_rng(0)
+    x, y, z, out = (rng.random(threads) + 0.5 for _ in range(4))
+    kernel(x, y, z, out, 10)
+    best = float("inf")
+    for _ in range(7):
+        start = time.perf_counter()
+        kernel(x, y, z, out, repeats)
+        best = min(best, (time.perf_counter() - start) / repeats / threads)
+    return 1e9 * best
+
+
+class Yardsticks:
+    """The two yardsticks a speed benchmark times in its own run, so that its figures are
+    ratios to what the project's changes cannot move: the frozen plain loop
+    (``yardstick.py``: the 3 s deployment over a pair list; its file's SHA-256 recorded),
+    timed with :meth:`time` beside the benchmark's own repeats, and the machine's sqrt and
+    division bound (:func:`sqrt_division_bound`), the floor of a thread's arithmetic."""
+
+    def __init__(self):
+        self.walls: list[float] = []
+        """The plain loop's wall times [s], one per :meth:`time`."""
+        self.bound_ns = sqrt_division_bound()
+        """The bound [ns per thread and step]."""
+
+    def time(self) -> float:
+        """Time the plain loop once (it compiles on the first call, untimed) [s]."""
+        self.walls.append(yardstick.run()[0])
+        return self.walls[-1]
+
+    @property
+    def median(self) -> float:
+        """Median of the plain loop's wall times [s]."""
+        return statistics.median(self.walls)
+
+    def bound_s(self, steps: int, threads: int = DEPLOYMENT_THREADS) -> float:
+        """The bound's time for ``steps`` steps of ``threads`` threads [s]."""
+        return 1e-9 * self.bound_ns * threads * steps
+
+    def ratios(self, wall: float, steps: int | None = None,
+               threads: int = DEPLOYMENT_THREADS) -> dict:
+        """``wall`` [s] as a ratio to the plain loop's median, and (given the run's steps
+        and threads) to the bound's time for the same work."""
+        doc = {"x_yardstick": wall / self.median}
+        if steps:
+            doc["x_bound"] = wall / self.bound_s(steps, threads)
+        return doc
+
+    def doc(self) -> dict:
+        """What the benchmark's JSON records of the yardsticks."""
+        return {"plain_loop": {"file": "benchmarks/yardstick.py",
+                               "sha256": yardstick.file_hash(), "walls_s": self.walls,
+                               "median_s": self.median,
+                               "what": f"{yardstick.DURATION:g} s deployment, symplectic "
+                                       f"Euler at {yardstick.DT:g} s, plain pair-list loop"},
+                "sqrt_division_bound": {"ns_per_thread": self.bound_ns,
+                                        "threads": DEPLOYMENT_THREADS,
+                                        "us_per_step": 1e-3 * self.bound_ns
+                                        * DEPLOYMENT_THREADS}}
 
 
 def errors(path, reference) -> dict:

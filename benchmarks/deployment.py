@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import json
 import platform
+import statistics
 
-from common import errors, output_dir, parser, timed
+from common import Yardsticks, errors, output_dir, parser, timed
 
 import bulletnet as bn
 
@@ -48,17 +49,27 @@ def main() -> None:
     doc["reference_vs_fine"] = {"horizon_s": args.ref_horizon, "wall_s": wall,
                                 **errors(out / "reference.h5", fine)}
 
-    # 2. fast at its defaults, timed REPEATS times; and the alternatives for scale
-    wall, walls, result = timed(base, out / "fast.h5", args.repeats)
+    # 2. fast at its defaults, timed REPEATS times beside the yardsticks; and the
+    # alternatives for scale
+    yard = Yardsticks()
+    walls = []
+    for _ in range(args.repeats):
+        yard.time()
+        one, _, result = timed(base, out / "fast.h5")
+        walls.append(one)
+    wall = statistics.median(walls)
     doc["runs"]["fast"] = {"integrator": base.simulation.integrator, "dt_s": 1e-6,
                            "wall_s_median": wall, "wall_s_all": walls,
-                           "steps": result.stats["steps"], **errors(out / "fast.h5", fine)}
+                           "steps": result.stats["steps"],
+                           **yard.ratios(wall, result.stats["steps"]),
+                           **errors(out / "fast.h5", fine)}
     for integrator, dt in (("symplectic_euler", 2e-6), ("implicit_euler", 1e-5)):
         name = f"fast_{integrator}_{dt:g}"
         wall, _, result = timed(base.with_overrides({"simulation.integrator": integrator,
                                                      "simulation.dt": dt}), out / f"{name}.h5")
         doc["runs"][name] = {"integrator": integrator, "dt_s": dt, "wall_s_median": wall,
-                             "steps": result.stats["steps"], **errors(out / f"{name}.h5", fine)}
+                             "steps": result.stats["steps"], **yard.ratios(wall),
+                             **errors(out / f"{name}.h5", fine)}
 
     # 3. bullet at its defaults over a shorter horizon
     wall, _, result = timed(base.with_overrides({"simulation.engine": "bullet",
@@ -67,11 +78,14 @@ def main() -> None:
     doc["runs"]["bullet"] = {"integrator": base.simulation.integrator, "dt_s": 1e-6,
                              "horizon_s": args.bullet_horizon, "wall_s": wall,
                              "wall_s_scaled_to_duration": wall * duration / args.bullet_horizon,
+                             "x_yardstick_scaled": wall * duration / args.bullet_horizon
+                             / yard.median,
                              "steps": result.stats["steps"], **errors(out / "bullet.h5", fine),
                              "vs_fast_same_horizon": errors(out / "bullet.h5",
                                                             bn.open_recording(out / "fast.h5"))}
     doc["vortex_paper"] = {"wall_s_dt_5e-5": 2658.0, "wall_s_dt_1_60": 9.0,
                            "table2_rmse_pos_max": 0.006835, "table2_rmse_pos_avg": 0.002939}
+    doc["yardsticks"] = yard.doc()
     (out / "deployment.json").write_text(json.dumps(doc, indent=2))
     print(json.dumps(doc, indent=2))
 

@@ -1,10 +1,12 @@
-"""Grid kernels against the pair-list path (issue: net kernels that use the grid).
+"""The net's two kernel paths, grid stencils and pair list, against the yardsticks.
 
 This machine's speed drifts by up to ~1.8x between days, so every case is timed interleaved
-with the baseline — the pair-list path on the plain 3 s deployment, symplectic Euler at
-1e-6 s — and reported as a ratio to it (medians of REPEATS). Accuracy: Eq. 14 average
-position RMSE against converged fine-step runs (symplectic Euler at 2.5e-7 s, with and
-without bending; cached in OUT). Writes ``OUT/grid.json`` and ``OUT/grid.png``.
+with the frozen yardstick (``yardstick.py``: a plain compiled loop of the same 3 s deployment,
+symplectic Euler at 1e-6 s over a pair list) and reported as the median of its per-repeat
+ratios to it, and, for the work of the plain deployment, to the machine's sqrt and division
+bound (``common.Yardsticks``). Accuracy: Eq. 14 average position RMSE against converged
+fine-step runs (symplectic Euler at 2.5e-7 s, with and without bending; cached in OUT).
+Writes ``OUT/grid.json`` and ``OUT/grid.png``.
 
 Usage: python benchmarks/grid.py [OUT] [--repeats N] [--capture-duration S]
        python benchmarks/grid.py --plot OUT/grid.json   (redraw the chart)
@@ -16,10 +18,9 @@ import json
 import platform
 import statistics
 import sys
-import time
 from pathlib import Path
 
-from common import errors, output_dir, parser, timed
+from common import DEPLOYMENT_THREADS, Yardsticks, errors, output_dir, parser, timed
 
 import bulletnet as bn
 
@@ -47,35 +48,12 @@ def fine(base, out, bending: bool):
     return bn.open_recording(path)
 
 
-def sqrt_division_bound(threads: int, repeats: int = 200000) -> float:
-    """The machine's throughput bound of a thread's unavoidable arithmetic: one square root
-    and one reciprocal per thread, over ``threads`` contiguous values, vectorized as the
-    stencils are [ns per thread] (best of 7)."""
-    import numba as nb
-    import numpy as np
-
-    @nb.njit(error_model="numpy")
-    def kernel(x, y, z, out, reps):
-        for _ in range(reps):
-            for i in range(x.shape[0]):
-                length = np.sqrt(x[i] * x[i] + y[i] * y[i] + z[i] * z[i])
-                out[i] = 1.0 / length + length
-
-    rng = np.random.default_rng(0)
-    x, y, z, out = (rng.random(threads) + 0.5 for _ in range(4))
-    kernel(x, y, z, out, 10)
-    best = float("inf")
-    for _ in range(7):
-        start = time.perf_counter()
-        kernel(x, y, z, out, repeats)
-        best = min(best, (time.perf_counter() - start) / repeats / threads)
-    return 1e9 * best
-
-
-def interleaved(scenes: dict, out, repeats: int) -> dict:
-    """Wall times [s] of each named scene, run in turn REPEATS times: name -> list."""
+def interleaved(scenes: dict, out, repeats: int, yard: Yardsticks) -> dict:
+    """Wall times [s] of each named scene, run in turn REPEATS times after the plain loop:
+    name -> list."""
     walls = {name: [] for name in scenes}
     for _ in range(repeats):
+        yard.time()
         for name, scene in scenes.items():
             wall, _, _ = timed(scene, out / f"{name}.h5")
             walls[name].append(wall)
@@ -89,39 +67,41 @@ def main() -> None:
     args = p.parse_args()
     out = output_dir(args)
     base = bn.load_scenario("deployment")
+    yard = Yardsticks()
     doc = {"machine": platform.processor() or platform.machine(),
-           "bulletnet_version": bn.__version__, "repeats": args.repeats,
-           "baseline": "pair-list path, plain 3 s deployment, symplectic Euler at 1e-6 s",
-           "cases": {}}
+           "bulletnet_version": bn.__version__, "repeats": args.repeats, "cases": {}}
     references = {False: fine(base, out, False), True: fine(base, out, True)}
 
-    scenes = {"baseline": base.with_overrides({"simulation.kernels": "pairs"})}
+    scenes = {}
     for name, overrides in CASES.items():
         for kernels in ("pairs", "grid"):
             scenes[f"{name}_{kernels}"] = base.with_overrides(
                 {**overrides, "simulation.kernels": kernels})
     for scene in scenes.values():  # compile every kernel before timing
         bn.run(scene.with_overrides({"scene.duration": 0.001}), out / "warm.h5", force=True)
-    walls = interleaved(scenes, out, args.repeats)
-    baseline = statistics.median(walls["baseline"])
-    doc["baseline_wall_s"] = baseline
-    doc["baseline_wall_s_all"] = walls["baseline"]
+    walls = interleaved(scenes, out, args.repeats, yard)
+    doc["yardsticks"] = yard.doc()
+    steps = round(base.scene.duration / 1e-6)  # the plain deployment's steps: the bound's work
     for name, overrides in CASES.items():
         case = {"overrides": overrides}
         for kernels in ("pairs", "grid"):
             key = f"{name}_{kernels}"
             wall = statistics.median(walls[key])
             err = errors(out / f"{key}.h5", references[bool(overrides.get("bending.enabled"))])
+            per_repeat = [w / y for w, y in zip(walls[key], yard.walls, strict=True)]
             case[kernels] = {"wall_s_median": wall, "wall_s_all": walls[key],
-                             "ratio_to_baseline": wall / baseline,
-                             "speedup_over_baseline": baseline / wall, **err}
+                             "x_yardstick": statistics.median(per_repeat),
+                             "x_yardstick_all": per_repeat, **err}
+            if name == "deployment":
+                case[kernels]["x_bound"] = wall / yard.bound_s(steps)
         case["grid_speedup_over_pairs"] = (case["pairs"]["wall_s_median"]
                                            / case["grid"]["wall_s_median"])
         case["same_results"] = case["pairs"]["rmse_pos_avg"] == case["grid"]["rmse_pos_avg"]
         doc["cases"][name] = case
-        print(f"{name}: pairs {case['pairs']['wall_s_median']:.2f} s, grid "
-              f"{case['grid']['wall_s_median']:.2f} s ({case['grid_speedup_over_pairs']:.2f}x), "
-              f"{1e3 * case['grid']['rmse_pos_avg']:.3f} mm; baseline {baseline:.2f} s")
+        print(f"{name}: pairs {case['pairs']['wall_s_median']:.2f} s "
+              f"({case['pairs']['x_yardstick']:.2f}x yardstick), grid "
+              f"{case['grid']['wall_s_median']:.2f} s ({case['grid']['x_yardstick']:.2f}x), "
+              f"{1e3 * case['grid']['rmse_pos_avg']:.3f} mm; yardstick {yard.median:.2f} s")
 
     capture = bn.load_scenario("capture", {"bending.enabled": True,
                                            "scene.duration": args.capture_duration})
@@ -129,7 +109,7 @@ def main() -> None:
     for kernels in ("pairs", "grid"):
         wall, _, result = timed(capture.with_overrides({"simulation.kernels": kernels}),
                                 out / f"capture_{kernels}.h5")
-        cap[kernels] = {"wall_s": wall, "steps": result.stats["steps"]}
+        cap[kernels] = {"wall_s": wall, "steps": result.stats["steps"], **yard.ratios(wall)}
     cap["grid_speedup_over_pairs"] = cap["pairs"]["wall_s"] / cap["grid"]["wall_s"]
     doc["capture_bending"] = {"duration_s": args.capture_duration, **cap}
     print(f"capture with bending, {args.capture_duration} s: pairs {cap['pairs']['wall_s']:.1f}"
@@ -149,21 +129,15 @@ def main() -> None:
         print(f"Ns {ns}: {scaling[-1]['us_per_step']:.2f} us/step, "
               f"{scaling[-1]['ns_per_node_step']:.2f} ns per node-step")
     doc["scaling_symplectic_grid"] = scaling
-    threads = 2 * 11 * 10 + 4  # the Ns = 11 net
-    bound = sqrt_division_bound(threads)
-    doc["sqrt_division_bound"] = {
-        "threads": threads, "ns_per_thread": bound,
-        "us_per_step": 1e-3 * bound * threads,
-        "note": "sqrt + reciprocal per thread, vectorized: the floor of the thread stencils"}
-    print(f"sqrt/division bound: {bound:.3f} ns per thread, "
-          f"{1e-3 * bound * threads:.3f} us a step of the Ns = 11 net")
+    print(f"sqrt/division bound: {yard.bound_ns:.3f} ns per thread, "
+          f"{1e-3 * yard.bound_ns * DEPLOYMENT_THREADS:.3f} us a step of the Ns = 11 net")
     (out / "grid.json").write_text(json.dumps(doc, indent=2))
     plot(doc, out / "grid.png")
 
 
 def plot(doc: dict, path) -> None:
-    """Wall time of each case on both paths, as a ratio to the baseline, and the cost per
-    node-step against the node count."""
+    """Wall time of each case on both paths, as a ratio to the frozen yardstick, and the cost
+    per node-step against the node count."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -173,12 +147,14 @@ def plot(doc: dict, path) -> None:
     names = list(doc["cases"])
     for k, kernels in enumerate(("pairs", "grid")):
         a.bar([i + 0.4 * k for i in range(len(names))],
-              [doc["cases"][n][kernels]["ratio_to_baseline"] for n in names], 0.4,
+              [doc["cases"][n][kernels]["x_yardstick"] for n in names], 0.4,
               label=kernels)
     a.set_xticks([i + 0.2 for i in range(len(names))],
                  [n.replace("deployment_", "").replace("_", " ") for n in names])
-    a.set_ylabel("wall time / baseline [-]")
-    a.set_title(f"3 s deployment (baseline {doc['baseline_wall_s']:.2f} s)")
+    a.axhline(1.0, color="k", lw=0.8)
+    a.set_ylabel("wall time / frozen plain loop [-]")
+    a.set_title(f"3 s deployment (plain loop "
+                f"{doc['yardsticks']['plain_loop']['median_s']:.2f} s)")
     a.legend()
     rows = doc["scaling_symplectic_grid"]
     b.plot([r["nodes"] for r in rows], [r["ns_per_node_step"] for r in rows], "o-")

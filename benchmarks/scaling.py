@@ -17,7 +17,7 @@ import platform
 import statistics
 
 import numpy as np
-from common import output_dir, parser
+from common import Yardsticks, output_dir, parser
 
 import bulletnet as bn
 from bulletnet.analysis.plots import _pyplot
@@ -33,7 +33,9 @@ def main() -> None:
     doc = {"scene": "deployment", "machine": platform.machine(), "repeats": args.repeats,
            "units": {"duration_s": "s", "wall_s": "s", "wall_per_simulated_s": "s/s"},
            "series": {}}
+    yard = Yardsticks()
     for bending in (False, True):
+        yard.time()
         rows = []
         for ns in SIZES:
             duration = args.horizon
@@ -46,13 +48,17 @@ def main() -> None:
             wall, result = statistics.median(walls), results[-1]
             rows.append({"nodes_per_side": ns, "nodes": ns * ns + 4, "duration_s": duration,
                          "steps": result.stats["steps"], "wall_s": wall, "wall_s_all": walls,
-                         "wall_per_simulated_s": wall / duration})
+                         "wall_per_simulated_s": wall / duration,
+                         "x_bound": wall / yard.bound_s(result.stats["steps"],
+                                                        2 * ns * (ns - 1) + 4)})
             print(rows[-1], flush=True)
         n = np.array([r["nodes"] for r in rows], float)
         cost = np.array([r["wall_per_simulated_s"] for r in rows])
         slope, _ = np.polyfit(np.log(n), np.log(cost), 1)
         doc["series"]["bending" if bending else "plain"] = {"runs": rows,
                                                             "log_log_slope": float(slope)}
+    yard.time()
+    doc["yardsticks"] = yard.doc()
     (out / "scaling.json").write_text(json.dumps(doc, indent=2))
     plot(doc, out / "scaling.png")
     print(json.dumps({k: v["log_log_slope"] for k, v in doc["series"].items()}))

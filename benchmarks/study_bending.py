@@ -23,7 +23,7 @@ import shutil
 import time
 from pathlib import Path
 
-from common import output_dir, parser
+from common import Yardsticks, output_dir, parser
 
 from bulletnet.model.scenario import SCENARIO_DIR
 from bulletnet.studies.report import report
@@ -59,6 +59,8 @@ def main() -> None:
     warm = (study.scene, (first, first | {"bending.enabled": True}))
     load = {"before": os.getloadavg()}
 
+    yard = Yardsticks()
+    yard.time()
     warm_up(*warm)
     serial = timed_study(subset, work / "serial", serial=True)
     load["after_serial"] = os.getloadavg()
@@ -80,6 +82,8 @@ def main() -> None:
     whole |= {"rows": len(walls), "sum_of_run_walls_s": sum(walls),
               "mean_run_wall_s": sum(walls) / len(walls)}
     load["after_study"] = os.getloadavg()
+    yard.time()
+    whole["mean_run_wall_x_yardstick"] = whole["mean_run_wall_s"] / yard.median
     report(work / "study")
     summary = json.loads((work / "study" / "summary.json").read_text())
     doc = {
@@ -92,6 +96,7 @@ def main() -> None:
                        "same_measures": _measures(work / "serial")
                        == _measures(work / "dask")},
         "whole_study": whole, "load_average": load, "summary": summary,
+        "yardsticks": yard.doc(),
     }
     (out / "study_bending.json").write_text(json.dumps(doc, indent=2) + "\n")
     shutil.copy(work / "study" / "runs.csv", out / "study_bending_runs.csv")

@@ -14,7 +14,7 @@ import os
 import statistics
 import time
 
-from common import output_dir, parser
+from common import Yardsticks, output_dir, parser
 
 from bulletnet.model.scenario import SCENARIO_DIR
 from bulletnet.studies.runner import dask_client
@@ -55,7 +55,9 @@ def main() -> None:
     out = output_dir(args)
     spec = load_sweep(SCENARIO_DIR / "sweep_example.toml")
     pairs = []
+    yard = Yardsticks()
     for _ in range(args.repeats):
+        yard.time()
         pairs.append(one_pair(spec, out, args.workers))
         print(json.dumps(pairs[-1]), flush=True)
     doc = {"variants": len(spec.variants), "workers": args.workers, "cpus": os.cpu_count(),
@@ -63,7 +65,8 @@ def main() -> None:
            **{f"{k}_median": statistics.median(pair[k] for pair in pairs)
               for k in ("serial_s", "dask_s", "speedup", "speedup_with_cluster_start",
                         "worker_parallelism", "variant_slowdown_under_dask")},
-           "pairs": pairs}
+           "pairs": pairs, "yardsticks": yard.doc()}
+    doc["serial_s_x_yardstick"] = doc["serial_s_median"] / yard.median
     (out / "sweep_speedup.json").write_text(json.dumps(doc, indent=2))
     print(json.dumps({k: v for k, v in doc.items() if k != "pairs"}, indent=2))
 

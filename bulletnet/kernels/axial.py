@@ -43,7 +43,13 @@ def tension_law(dx, dy, dz, du, dv, dw, rest, k, c, bilateral):
     its spring holds (unless ``bilateral``). Branch-free, so loops over threads vectorize; the
     direction is computed for a slack thread too (and is not finite for l = 0: callers use it
     only where T != 0)."""
-    length = np.sqrt(dx * dx + dy * dy + dz * dz)
+    return tension_at(np.sqrt(dx * dx + dy * dy + dz * dz), dx, dy, dz, du, dv, dw, rest, k,
+                      c, bilateral)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def tension_at(length, dx, dy, dz, du, dv, dw, rest, k, c, bilateral):
+    """:func:`tension_law` of a thread whose length ``length`` [m] is known."""
     inv = 1.0 / length
     ex, ey, ez = dx * inv, dy * inv, dz * inv
     return (kelvin_voigt(length, du * ex + dv * ey + dw * ez, rest, k, c, bilateral), ex, ey,
@@ -63,12 +69,23 @@ def thread_tension(p, pos, vel, pairs, rest, k, c, bilateral):
 @nb.njit(cache=True, error_model="numpy")
 def axial_forces(pos, vel, pairs, rest, k, c, bilateral, force, tension):
     """Add every thread's force [N] into ``force`` (N, 3); write tensions [N] into ``tension``
-    (P,); with ``bilateral`` set the elements also push."""
+    (P,); with ``bilateral`` set the elements also push. A slack thread (l <= l_0) is known
+    from its length alone: it gets its zero tension without a direction (over a pair list
+    nothing vectorizes, so the branch saves a division and the rest of the law; every other
+    thread's tension is :func:`tension_law`'s, the same operations in the same order)."""
     for p in range(pairs.shape[0]):
-        t, ex, ey, ez, _ = thread_tension(p, pos, vel, pairs, rest, k, c, bilateral)
+        i, j = pairs[p, 0], pairs[p, 1]
+        dx, dy, dz = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]
+        length = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if length <= rest[p] and not bilateral:
+            tension[p] = 0.0
+            continue
+        t, ex, ey, ez, _ = tension_at(length, dx, dy, dz, vel[j, 0] - vel[i, 0],
+                                      vel[j, 1] - vel[i, 1], vel[j, 2] - vel[i, 2], rest[p],
+                                      k[p], c[p], bilateral)
         tension[p] = t
         if t != 0.0:
-            add_pair(force, pairs[p, 0], pairs[p, 1], t * ex, t * ey, t * ez)
+            add_pair(force, i, j, t * ex, t * ey, t * ez)
 
 
 @nb.njit(cache=True, error_model="numpy")

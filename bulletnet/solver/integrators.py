@@ -174,7 +174,7 @@ def workspace(n: int, p: int) -> Workspace:
         step_count=np.zeros(1, dtype=np.int64), gain=np.zeros(n))
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def evaluate_bending(pos, vel, quat, omega, model, work):
     """The bending springs afresh: forces [N] into work's bend, torques [N m] into its
     torque, the threads' shear [N] into its shear. Without bending (``quat`` None) nothing,
@@ -187,7 +187,7 @@ def evaluate_bending(pos, vel, quat, omega, model, work):
                    model.k_b, model.c_b, work.bend, work.torque, work.shear)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending_weight,
                     hold):
     """Gravity, loads, ``external`` [N] (N, 3) and the bending forces into work's force
@@ -350,7 +350,7 @@ def implicit_increment(pos, vel, model, work, dt, tol):
             dv[i, a] += momentum[a] / total_mass
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def symplectic_increment(pos, vel, model, work, dt):
     """Velocity increment dv = dt F / m [m/s] of one symplectic Euler step, into work's dv.
     Work's force must hold the non-axial forces on entry (:func:`external_forces`)."""
@@ -394,7 +394,7 @@ def increment(implicit: bool):
     Euler into work's dv; counts the step. (``implicit`` is a constant of the kernel: each
     integrator compiles only its own increment.)"""
 
-    @nb.njit(cache=True, error_model="numpy")
+    @nb.njit(cache=True, error_model="numpy", inline="always")
     def increment_kernel(weight, pos, vel, quat, omega, model, work, gravity, external, dt,
                          tol):
         external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
