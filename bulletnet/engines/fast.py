@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.axial import axial_forces
 from ..model.debris import COM, OMEGA, QUAT, VELOCITY
 from ..model.state import NetState
 from ..solver import contact_stage as contact
@@ -80,10 +81,13 @@ class FastEngine(Engine):
                     if self.implicit else
                     [(grid_kernels.symplectic_step, (self.grid, self.views, self.dt, 0.0,
                                                      self.contact_arrays is not None))])
-        else:
-            step = [(integrators.increment(self.implicit),
-                     (0.0, pos, vel, quat, omega, self.arrays, self.step_work, self.gravity,
-                      self.external, self.dt, self.cg_tolerance))]
+        else:  # the increment is inlined into the loop: the kernels it calls
+            a, w = self.arrays, self.step_work
+            step = ([(integrators.implicit_increment, (pos, vel, a, w, self.dt,
+                                                       self.cg_tolerance))]
+                    if self.implicit else
+                    [(axial_forces, (pos, vel, a.pairs, a.rest, a.k_a, a.c_a, a.bilateral,
+                                     w.force, w.tension))])
         groups = {"step": step}
         if self.grid is not None and self.bending:
             groups["bending"] = [(grid_kernels.bending, (self.grid, self.views,
