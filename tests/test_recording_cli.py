@@ -35,7 +35,8 @@ def test_cli_run_writes_documented_layout(tmp_path):
         shapes = {"nodes/position": (t, n, 3), "nodes/velocity": (t, n, 3), "nodes/mass": (n,),
                   "nodes/radius": (n,), "nodes/kind": (n,), "threads/pairs": (p, 2),
                   "threads/rest_length": (p,), "threads/stiffness": (p,),
-                  "threads/damping": (p,), "threads/tension": (t, p), "time": (t,)}
+                  "threads/damping": (p,), "threads/breaking_tension": (p,),
+                  "threads/tension": (t, p), "time": (t,)}
         for name, shape in shapes.items():
             assert f[name].shape == shape, name
             assert "units" in f[name].attrs, name

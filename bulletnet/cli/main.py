@@ -534,9 +534,11 @@ def cmd_warmup(args) -> int:
 
 
 def cmd_params(args) -> int:
+    import numpy as np
+
     from ..model.builder import build_model, scene_debris
     from ..model.materials import contact_table
-    from ..model.net import NodeKind, corner_threads
+    from ..model.net import ELEMENT_NAMES, ElementKind, NodeKind, corner_threads, thread_kinds
 
     scene = _scene(args)
     model = build_model(scene)
@@ -548,7 +550,8 @@ def cmd_params(args) -> int:
                                         "mass_kg": float(model.mass[nodes[0]]),
                                         "radius_m": float(model.radius[nodes[0]])}
     threads = {}
-    for label, index in (("inner", 0), ("corner", corner_threads(model.pairs, model.kind)[-1])):
+    corner = corner_threads(model.pairs, model.kind)
+    for label, index in (("inner", 0), ("corner", corner[-1] if corner.size else 0)):
         threads[label] = {
             "rest_length_m": float(model.rest_length[index]),
             "radius_m": float(model.thread_radius[index]),
@@ -558,7 +561,13 @@ def cmd_params(args) -> int:
             "c_t_Ns_per_m": float(model.transverse_damping[index]),
             "k_b_Nm_per_rad": float(model.bending_stiffness[index]),
             "c_b_Nms_per_rad": float(model.bending_damping[index]),
+            "breaking_tension_N": float(model.breaking_tension[index]),
         }
+    element_kinds = thread_kinds(model.pairs, model.kind)
+    strength = {ELEMENT_NAMES[ElementKind(kind)]: float(model.breaking_tension[
+        element_kinds == kind][0]) for kind in np.unique(element_kinds)}
+    if model.cable_count:
+        strength[ELEMENT_NAMES[ElementKind.CABLE]] = float(model.cable_breaking_tension[0])
     contact = {f"{a}/{b}": {"k_c_N_per_m": k, "c_c_Ns_per_m": c}
                for (a, b), (k, c) in contact_table(scene, model).items()}
     pybullet_fit = {}
@@ -575,7 +584,8 @@ def cmd_params(args) -> int:
         "node_count": model.node_count,
         "thread_count": model.thread_count,
         "total_mass_kg": float(model.mass.sum()),
-        "nodes": kinds, "threads": threads, "contact": contact,
+        "nodes": kinds, "threads": threads, "breaking_tension_N": strength,
+        "contact": contact,
         "bullet_engine_contact_fit": pybullet_fit,
     }
     debris = scene_debris(scene)
@@ -600,9 +610,12 @@ def cmd_params(args) -> int:
     rows = [("l_0 [m]", "rest_length_m"), ("r [m]", "radius_m"),
             ("k_a [N/m]", "k_a_N_per_m"), ("c_a [N s/m]", "c_a_Ns_per_m"),
             ("k_t [N/m]", "k_t_N_per_m"), ("c_t [N s/m]", "c_t_Ns_per_m"),
-            ("k_b [N m/rad]", "k_b_Nm_per_rad"), ("c_b [N m s/rad]", "c_b_Nms_per_rad")]
+            ("k_b [N m/rad]", "k_b_Nm_per_rad"), ("c_b [N m s/rad]", "c_b_Nms_per_rad"),
+            ("T_break [N]", "breaking_tension_N")]
     for label, key in rows:
         print(f"{label:<18}{threads['inner'][key]:>13.6g} {threads['corner'][key]:>13.6g}")
+    print("\nbreaking tension ([strength]; a knot efficiency on net and corner threads): "
+          + ", ".join(f"{name} {value:.6g} N" for name, value in strength.items()))
     print("\ncontact pair (Tables 5-6)        k_c [1e9 N/m]   c_c [N s/m]")
     for pair, v in contact.items():
         print(f"{pair:<33}{v['k_c_N_per_m'] / 1e9:>13.4f} {v['c_c_Ns_per_m']:>13.2f}")
