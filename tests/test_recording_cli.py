@@ -234,7 +234,7 @@ def test_plot_writes_the_figures(tmp_path):
     proc = cli("plot", str(a), str(b), "--out", str(tmp_path / "fig"))
     assert proc.returncode == 0, proc.stderr
     names = {"mouth.png", "height.png", "diagonal.png", "area.png", "rmse.png",
-             "corner_thread.png"}
+             "corner_thread.png", "strength.png"}
     assert {p.name for p in (tmp_path / "fig").iterdir()} == names
     for name in names:
         assert (tmp_path / "fig" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -112,12 +112,13 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--json", action="store_true", help="machine-readable output (RMSE in "
                          "m and m/s)")
 
-    metrics = sub.add_parser("metrics", help="mouth area, mouth diagonal, net height (Eq. 13); "
-                             "with debris: first contact, nodes in contact, wrap, leave time, "
-                             "debris spin, capture score and outcome")
+    metrics = sub.add_parser("metrics", help="mouth area, mouth diagonal, net height (Eq. 13), "
+                             "the least safety factor (where and when) and the largest snap "
+                             "load; with debris: first contact, nodes in contact, wrap, leave "
+                             "time, debris spin, capture score and outcome")
     metrics.add_argument("run", metavar="RUN.h5", help="a recording")
     metrics.add_argument("--json", action="store_true", help="machine-readable output, every "
-                         "frame (keys carry their unit: _s, _m, _m2, _J, _deg_s)")
+                         "frame (keys carry their unit: _s, _m, _m2, _N, _J, _deg_s)")
     metrics.add_argument("--every", type=_positive, default=0.1, metavar="S",
                          help="table row interval [s] (text output only)")
     plot = sub.add_parser("plot", help="the paper's deployment and capture figures as PNG")
@@ -675,6 +676,7 @@ def cmd_metrics(args) -> int:
         print(json.dumps(doc))
         return 0
     print(f"{rec.path}: {rec.status}, {rec.time.size} frames")
+    print("\n".join(strength_text(doc["strength"])))
     capture = doc.get("capture")
     if capture:
         def when(t):
@@ -710,6 +712,37 @@ def cmd_metrics(args) -> int:
                   f"{doc['net_height_m'][k]:15.5g}{extra}")
             next_t = t + args.every
     return 0
+
+
+def _where(margin: dict) -> str:
+    """An element at a time, as text: ``corner thread 220 (nodes 0-36) at 0.52 s``."""
+    e = margin["element"]
+    return (f"{e['kind']} {e['index']} (nodes {e['nodes'][0]}-{e['nodes'][1]}) at "
+            f"{margin['time_s']:.3f} s")
+
+
+def strength_text(doc: dict) -> list[str]:
+    """The safety margins of :func:`bulletnet.analysis.metrics.strength_summary` as lines:
+    the least safety factor, where (the element, its ends' positions) and when, the least
+    of each kind, the elements over their strength and the largest snap load."""
+    if doc["least_safety_factor"] is None:
+        return ["least safety factor: no element was ever taut"]
+    ends = " and ".join(_vec(p, ".3f") for p in doc["element"]["positions_m"])
+    lines = [f"least safety factor (breaking tension / largest tension): "
+             f"{doc['least_safety_factor']:.4g}, {_where(doc)}: {doc['tension_N']:.4g} N "
+             f"of {doc['breaking_tension_N']:.4g} N; its ends at {ends} m"]
+    lines += [f"  {kind + 's':<15} ({m['elements']:>4}): "
+              + (f"{m['least_safety_factor']:.4g}, {_where(m)}" if m["element"] else "never taut")
+              for kind, m in doc["by_kind"].items()]
+    over = doc["overloaded_elements"]
+    lines.append(f"elements at or over their breaking tension: {over}"
+                 + (f" (the first at {doc['first_overload_s']:.3f} s)" if over else ""))
+    snap = doc["largest_snap"]
+    if snap:
+        lines.append(f"largest snap load: {snap['tension_N']:.4g} N (utilisation "
+                     f"{snap['utilisation']:.3g}) in {_where(snap)}; "
+                     f"{doc['snap_events']} slack -> taut events in all")
+    return lines
 
 
 def _outcome_text(outcome: str, decided: float, reason: str) -> str:
