@@ -225,3 +225,21 @@ def test_bad_strength_is_one_clear_error(key, value, needle):
     assert needle in str(err.value) and key in str(err.value)
     assert "\n" not in str(err.value)
 
+
+def test_study_report_gives_the_probability_of_an_overload():
+    # Reference: the Wilson interval of the share of runs in which an element reached its
+    # breaking tension (a true/false measure), overall and by input bin.
+    from bulletnet.studies.report import probabilities, wilson
+
+    doc = {"measures": ["min_safety_factor", "overloaded_elements", "overloaded"],
+           "columns": {"net.thread_radius": "net.thread_radius_m"},
+           "vary": {"net.thread_radius": {"dist": "uniform"}}}
+    over = [True, True, False, False, False]
+    rows = [{"status": "completed", "net.thread_radius_m": 1e-4 * (k + 1),
+             "min_safety_factor": 0.5 if o else 2.0, "overloaded_elements": 3 * o,
+             "overloaded": o} for k, o in enumerate(over)]
+    probs = probabilities(doc, rows, bins=1)
+    assert set(probs) == {"overloaded"}
+    p, low, high = wilson(2, 5)
+    assert probs["overloaded"]["overall"]["True"] == {"count": 2, "n": 5, "p": p, "low": low,
+                                                      "high": high}
