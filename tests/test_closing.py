@@ -26,7 +26,7 @@ def _cable_model(position, mass, fixed, cable_nodes, rest, rigidity, damping_tim
         rest_length=none, thread_radius=none, axial_stiffness=none, axial_damping=none,
         transverse_stiffness=none, transverse_damping=none, bending_stiffness=none,
         bending_damping=none, inertia=np.full(n, 1e-6), rest_axis=np.zeros((0, 3)),
-        fixed=np.asarray(fixed), load=np.zeros((n, 3)), bilateral=False,
+        fixed=np.asarray(fixed), load=np.zeros((n, 3)), breaking_tension=none, bilateral=False,
         cable_nodes=np.asarray(cable_nodes, np.int64),
         cable_start=np.array([0, len(cable_nodes)], np.int64),
         cable_rest_length=np.array([rest]), cable_rigidity=np.array([rigidity]),
@@ -145,7 +145,8 @@ def test_tether_carries_the_mass_it_accelerates():
         axial_damping=np.full(p, 200.0), transverse_stiffness=np.zeros(p),
         transverse_damping=np.zeros(p), bending_stiffness=np.zeros(p),
         bending_damping=np.zeros(p), inertia=np.full(n, 1e-6), rest_axis=np.zeros((p, 3)),
-        fixed=np.zeros(n, bool), load=np.zeros((n, 3)), bilateral=False)
+        fixed=np.zeros(n, bool), load=np.zeros((n, 3)), breaking_tension=np.full(p, np.inf),
+        bilateral=False)
     s = _scene(scene__duration=4.0, simulation__integrator="symplectic_euler",
                simulation__dt=1e-5)
     engine = FastEngine(s, model)

@@ -35,7 +35,8 @@ def test_cli_run_writes_documented_layout(tmp_path):
         shapes = {"nodes/position": (t, n, 3), "nodes/velocity": (t, n, 3), "nodes/mass": (n,),
                   "nodes/radius": (n,), "nodes/kind": (n,), "threads/pairs": (p, 2),
                   "threads/rest_length": (p,), "threads/stiffness": (p,),
-                  "threads/damping": (p,), "threads/tension": (t, p), "time": (t,)}
+                  "threads/damping": (p,), "threads/breaking_tension": (p,),
+                  "threads/tension": (t, p), "time": (t,)}
         for name, shape in shapes.items():
             assert f[name].shape == shape, name
             assert "units" in f[name].attrs, name
@@ -233,7 +234,7 @@ def test_plot_writes_the_figures(tmp_path):
     proc = cli("plot", str(a), str(b), "--out", str(tmp_path / "fig"))
     assert proc.returncode == 0, proc.stderr
     names = {"mouth.png", "height.png", "diagonal.png", "area.png", "rmse.png",
-             "corner_thread.png"}
+             "corner_thread.png", "strength.png"}
     assert {p.name for p in (tmp_path / "fig").iterdir()} == names
     for name in names:
         assert (tmp_path / "fig" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -94,7 +94,8 @@ def test_study_is_reproducible_bit_for_bit_from_its_file(tmp_path):
     assert all(r["status"] == "completed" for r in rows)
     assert list(rows[0]) == ["run", "launch.elevation_deg", "net.mesh_length_m",
                              "launch.corner_speed_m_s", "status", "message",
-                             "final_mouth_area_m2", "deployed_90pct_s", "max_corner_tension_N"]
+                             "final_mouth_area_m2", "deployed_90pct_s", "max_corner_tension_N",
+                             "min_safety_factor", "overloaded_elements", "overloaded"]
     # run 2 alone, from the file and its index, gives its row's measure
     scene = bn.load_scenario("deployment", first.fixed | first.values[2])
     rec = bn.open_recording(bn.run(scene, tmp_path / "alone.h5").path)
@@ -393,6 +394,9 @@ seed = 1
         assert row["max_nodes_in_contact"] == rec.contacts["count"].max() > 0
         assert row["max_wrap"] == bn.metrics.wrap(rec).max() > 0
         assert row["leave_s"] is None and row["outcome"] == rec.attrs["outcome"]
+        margin = bn.metrics.safety(rec)
+        assert row["min_safety_factor"] == margin["least_safety_factor"] > 1
+        assert row["overloaded_elements"] == 0 and row["overloaded"] is False
     path = tmp_path / "out" / "runs" / "run_00000.h5"
     with h5py.File(path, "a") as f:
         f.attrs["outcome"] = "captured"

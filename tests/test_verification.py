@@ -30,7 +30,8 @@ def two_mass_model(c: float = 0.0) -> NetModel:
         thread_radius=1e-3 * one, axial_stiffness=K * one, axial_damping=c * one,
         transverse_stiffness=0 * one, transverse_damping=0 * one, bending_stiffness=0 * one,
         bending_damping=0 * one, inertia=np.full(2, 1e-7), rest_axis=np.array([[1.0, 0, 0]]),
-        fixed=np.zeros(2, dtype=bool), load=np.zeros((2, 3)), bilateral=False)
+        fixed=np.zeros(2, dtype=bool), load=np.zeros((2, 3)), breaking_tension=np.full(1, np.inf),
+        bilateral=False)
 
 
 def pull_apart(model: NetModel, method: str, dt: float, t_end: float, v0: float = 1.0):

@@ -42,6 +42,8 @@ def test_decimation_keeps_every_nth_frame_and_the_last(runs):
     np.testing.assert_array_equal(track.time, rec.time[kept])
     np.testing.assert_array_equal(track.position, rec.position[kept])
     np.testing.assert_array_equal(track.tension, rec.tension[kept])
+    np.testing.assert_array_equal(track.utilisation,
+                                  rec.tension[kept] / rec.breaking_tension)
     np.testing.assert_array_equal(track.area, bn.metrics.mouth_area(rec)[kept])
 
 
@@ -175,7 +177,8 @@ def test_missing_groups_hide_their_controls(runs):
 
     with viser_server() as server:
         viewer = LiveViewer(server, load_replay([runs["plain"]]), [0.1])
-        assert set(viewer.controls) == {"nodes", "threads", "trails"}
+        assert set(viewer.controls) == {"nodes", "threads", "trails", "thread colour"}
+        assert viewer.controls["thread colour"].options == ("tension", "utilisation")
 
 
 def cli(capsys, *args):

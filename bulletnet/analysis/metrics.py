@@ -27,6 +27,20 @@ Capture (Sec. 5), from recordings with debris and contact:
   bending and contact springs) is never negative and zero at the start of a scene, and every
   force of the model is passive: so it never rises above its initial value plus the work of
   the closing mechanism's winches (:func:`winch_work`) in a sound run.
+
+Strength (every recording; docs/strength.md), over the elements: the threads (net threads,
+corner threads, a bridle's lines, the tether's, by their ends' kinds:
+:func:`bulletnet.model.net.thread_kinds`), then the closing cables:
+
+- utilisation: tension over breaking tension, per frame and element (:func:`utilisation`);
+- the least safety factor of the run, breaking tension over the largest tension, with the
+  element, its end nodes and their positions, and the time (:func:`safety`), overall and
+  for each kind of element; the elements that reached their breaking tension;
+- snap loads: each element's slack -> taut events (taut at a frame, slack at the one
+  before) and the peak tension of the taut spell each begins (:func:`snap_loads`).
+
+All from the recorded frames: a peak between two frames is missed (a higher record rate
+resolves it).
 """
 
 from __future__ import annotations
@@ -35,6 +49,7 @@ import numpy as np
 
 from ..common.errors import RecordingError
 from ..model.debris import rotation_matrix
+from ..model.net import ELEMENT_NAMES, ElementKind, thread_kinds
 from ..model.topology import center_nodes, net_corners, perimeter
 from ..recording.reader import Recording
 from .capture_score import OutcomeMonitor, ScoreGeometry, interior_samples, wrap_fraction
@@ -82,7 +97,8 @@ def deployed_time(rec: Recording, fraction: float = 0.9) -> float | None:
 
 def summary(rec: Recording) -> dict:
     """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys;
-    with the capture measures under ``capture`` for recordings with debris and contact."""
+    the safety margins under ``strength`` (:func:`strength_summary`); with the capture
+    measures under ``capture`` for recordings with debris and contact."""
     doc = {
         "time_s": rec.time.tolist(),
         "mouth_area_m2": mouth_area(rec).tolist(),
@@ -90,6 +106,7 @@ def summary(rec: Recording) -> dict:
         "net_height_m": net_height(rec).tolist(),
         "status": rec.status,
     }
+    doc["strength"] = strength_summary(rec)
     if rec.debris is not None and rec.contacts is not None:
         doc["capture"] = capture_summary(rec)
     return doc
@@ -293,3 +310,124 @@ def capture_summary(rec: Recording) -> dict:
         "mouth_opening": scores[:, 1].tolist(),
         "capture_quality": scores[:, 2].tolist(),
     }
+
+
+def breaking_tension(rec: Recording) -> np.ndarray:
+    """Tension at which each element breaks [N], shape (E,) = (P + C,): the threads', then
+    the closing cables', as recorded (``/threads/breaking_tension``,
+    ``/cables/breaking_tension``); for a recording made before they were, from its scene
+    (the ``scenario`` attribute, with ``[strength]``'s defaults) built again."""
+    if rec.breaking_tension is not None:
+        cables = [] if rec.cables is None else [rec.cables["breaking_tension"]]
+        return np.concatenate([rec.breaking_tension, *cables])
+    from ..model.builder import build_model
+
+    model = build_model(_scene(rec))
+    if not np.array_equal(model.pairs, rec.pairs):
+        raise RecordingError(f"{rec.path}: its scene builds other threads than it recorded; "
+                             "cannot tell their strength")
+    return np.concatenate([model.breaking_tension, model.cable_breaking_tension])
+
+
+def element_kinds(rec: Recording) -> np.ndarray:
+    """:class:`~bulletnet.model.net.ElementKind` of each element [-], shape (P + C,)."""
+    cables = 0 if rec.cables is None else rec.cables["tension"].shape[1]
+    return np.concatenate([thread_kinds(rec.pairs, rec.kind),
+                           np.full(cables, ElementKind.CABLE, dtype=np.int8)])
+
+
+def element_tension(rec: Recording) -> np.ndarray:
+    """Tension of each element, 0 when slack [N], shape (T, P + C): the threads', then the
+    closing cables'."""
+    return rec.tension if rec.cables is None else np.hstack([rec.tension,
+                                                             rec.cables["tension"]])
+
+
+def utilisation(rec: Recording) -> np.ndarray:
+    """Tension over breaking tension of each element at each frame [-], shape (T, P + C)
+    (1: the element is at its strength)."""
+    return element_tension(rec) / breaking_tension(rec)
+
+
+def element(rec: Recording, index: int, frame: int | None = None) -> dict:
+    """Element ``index`` (of the P + C) described, JSON-ready: its ``kind`` in words, its
+    ``index`` in ``/threads`` or ``/cables``, its end ``nodes`` (a cable's first and last
+    vertex) and, at ``frame``, their ``positions_m`` [m]."""
+    kinds = element_kinds(rec)
+    threads = rec.pairs.shape[0]
+    if index < threads:
+        nodes = rec.pairs[index]
+    else:
+        vertices, start = rec.cables["nodes"], rec.cables["start"]
+        cable = index - threads
+        nodes = vertices[[start[cable], start[cable + 1] - 1]]
+    out = {"kind": ELEMENT_NAMES[ElementKind(kinds[index])],
+           "index": int(index if index < threads else index - threads),
+           "nodes": [int(n) for n in nodes]}
+    if frame is not None:
+        out["positions_m"] = rec.position[frame, nodes].tolist()
+    return out
+
+
+def safety(rec: Recording) -> dict:
+    """The run's safety margins (JSON-ready): the least safety factor (breaking tension over
+    the largest tension, min over the elements) with the element (:func:`element`), the
+    ``time_s`` [s], its ``tension_N`` then [N] and its ``breaking_tension_N`` [N] (all None,
+    the tension 0, if no element was ever taut); the same for each kind of element
+    (``by_kind``, with its ``elements`` count); the ``overloaded_elements`` (at or over
+    their breaking tension in some frame), the ``first_overload_s`` [s] (None: none was)
+    and the highest utilisation at each frame (``max_utilisation``, (T,))."""
+    tension, strength, kinds = element_tension(rec), breaking_tension(rec), element_kinds(rec)
+    util = tension / strength
+
+    def least(columns: np.ndarray) -> dict:
+        frame, column = np.unravel_index(np.argmax(util[:, columns]),
+                                         (util.shape[0], columns.size))
+        index, peak = int(columns[column]), float(util[frame, columns[column]])
+        if peak <= 0:
+            return {"least_safety_factor": None, "time_s": None, "element": None,
+                    "tension_N": 0.0, "breaking_tension_N": None}
+        return {"least_safety_factor": 1.0 / peak, "time_s": float(rec.time[frame]),
+                "element": element(rec, index, frame),
+                "tension_N": float(tension[frame, index]),
+                "breaking_tension_N": float(strength[index])}
+
+    over = util >= 1.0
+    by_kind = {ELEMENT_NAMES[kind]: {"elements": int(columns.size), **least(columns)}
+               for kind in ElementKind if (columns := np.flatnonzero(kinds == kind)).size}
+    return {**least(np.arange(kinds.size)), "by_kind": by_kind,
+            "overloaded_elements": int(over.any(axis=0).sum()),
+            "first_overload_s": float(rec.time[np.argmax(over.any(axis=1))])
+            if over.any() else None,
+            "max_utilisation": util.max(axis=1).tolist()}
+
+
+def snap_loads(rec: Recording) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Slack -> taut events of each element (taut at a frame, slack at the frame before; an
+    element taut at the first frame has had none yet) [-], shape (P + C,); the peak tension
+    of each element over the taut spells such events begin [N], shape (P + C,) (0 without
+    one); and the frame of that peak [-], shape (P + C,)."""
+    tension = element_tension(rec)
+    taut = tension > 0
+    start = taut & ~np.vstack([taut[:1], taut[:-1]])
+    in_spell = taut & (np.cumsum(start, axis=0) > 0)
+    spell_tension = np.where(in_spell, tension, 0.0)
+    return start.sum(axis=0), spell_tension.max(axis=0), spell_tension.argmax(axis=0)
+
+
+def strength_summary(rec: Recording) -> dict:
+    """:func:`safety` with the largest snap load (:func:`snap_loads`; JSON-ready):
+    ``snap_events`` in all, and ``largest_snap`` with its ``tension_N`` [N], ``time_s`` [s],
+    ``utilisation`` [-], the element and its own ``events``; None without any event."""
+    events, peaks, frames = snap_loads(rec)
+    doc = safety(rec)
+    doc["snap_events"] = int(events.sum())
+    doc["largest_snap"] = None
+    if events.any():
+        index = int(np.argmax(peaks))
+        frame = int(frames[index])
+        doc["largest_snap"] = {
+            "tension_N": float(peaks[index]), "time_s": float(rec.time[frame]),
+            "utilisation": float(peaks[index] / breaking_tension(rec)[index]),
+            "events": int(events[index]), "element": element(rec, index, frame)}
+    return doc

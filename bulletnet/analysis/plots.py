@@ -6,6 +6,9 @@
 - ``rmse.png``: node-averaged RMSE over time, Eq. 15, position and velocity (Figs. 5, 8);
   only with two recordings;
 - ``corner_thread.png``: tension and shear in a corner thread on a log axis (Fig. 9);
+- ``strength.png``: the utilisation (tension over breaking tension) of each kind of element:
+  its highest over time, and the distribution of each element's peak, with the least safety
+  factor, where and when (:func:`bulletnet.analysis.metrics.safety`);
 - with debris: ``mouth.png`` has one panel per time with the debris' long axis (grey, its
   x-y projection through the body origin; Fig. 11), and ``capture.png`` plots nodes in
   contact, the wrap measure and the capture score (enclosed fraction, mouth opening, capture
@@ -20,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..common.errors import BulletnetError
-from ..model.net import corner_threads
+from ..model.net import ELEMENT_NAMES, ElementKind, corner_threads
 from ..recording.reader import Recording
 from . import metrics
 
@@ -113,7 +116,50 @@ def plot_recordings(a: Recording, b: Recording | None, out_dir: str | Path,
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     save(fig, "corner_thread.png")
+    save(_strength(plt, recs, styles), "strength.png")
     return written
+
+
+def _strength(plt, recs, styles):
+    """The utilisation of each kind of element (a colour each): the highest over time (top),
+    and the distribution of the elements' peaks over the run (bottom), on log axes; the line
+    at 1 is the breaking tension."""
+    fig, axes = plt.subplots(2, 1, figsize=(6.5, 7))
+    titles = []
+    utils = [metrics.utilisation(rec) for rec in recs]
+    positive = np.concatenate([u.max(axis=0) for u in utils])
+    positive = positive[positive > 0]
+    bins = (np.geomspace(positive.min(), positive.max() * 1.0001, 30) if positive.size
+            else np.geomspace(1e-6, 1.0, 30))  # the same bins for every run
+    for rec, style, util in zip(recs, styles, utils, strict=False):
+        kinds = metrics.element_kinds(rec)
+        peaks = util.max(axis=0)
+        for kind in ElementKind:
+            columns = kinds == kind
+            if not columns.any():
+                continue
+            colour, name = f"C{int(kind)}", ELEMENT_NAMES[kind]
+            history = util[:, columns].max(axis=1)
+            axes[0].semilogy(rec.time, np.where(history > 0, history, np.nan), style,
+                             color=colour, label=f"{name}s, {rec.path.stem}")
+            axes[1].hist(peaks[columns], bins=bins, histtype="step", ls=style, color=colour,
+                         label=f"{name}s, {rec.path.stem}")
+        margin = metrics.safety(rec)
+        titles.append(f"{rec.path.stem}: least safety factor "
+                      + (f"{margin['least_safety_factor']:.3g}, {margin['element']['kind']} "
+                         f"{margin['element']['index']} at {margin['time_s']:.2f} s"
+                         if margin["element"] else "- (never taut)"))
+    axes[0].axhline(1.0, color="k", lw=0.8)
+    axes[0].set_xlabel("time [s]")
+    axes[0].set_ylabel("highest utilisation [-]\n(tension / breaking tension)")
+    axes[0].set_title("\n".join(titles), fontsize=8)
+    axes[1].set_xscale("log")
+    axes[1].set_xlabel("peak utilisation of an element over the run [-]")
+    axes[1].set_ylabel("elements [-]")
+    for ax in axes:
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7)
+    return fig
 
 
 def _mouths(plt, recs, styles, times, b):

@@ -112,12 +112,13 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--json", action="store_true", help="machine-readable output (RMSE in "
                          "m and m/s)")
 
-    metrics = sub.add_parser("metrics", help="mouth area, mouth diagonal, net height (Eq. 13); "
-                             "with debris: first contact, nodes in contact, wrap, leave time, "
-                             "debris spin, capture score and outcome")
+    metrics = sub.add_parser("metrics", help="mouth area, mouth diagonal, net height (Eq. 13), "
+                             "the least safety factor (where and when) and the largest snap "
+                             "load; with debris: first contact, nodes in contact, wrap, leave "
+                             "time, debris spin, capture score and outcome")
     metrics.add_argument("run", metavar="RUN.h5", help="a recording")
     metrics.add_argument("--json", action="store_true", help="machine-readable output, every "
-                         "frame (keys carry their unit: _s, _m, _m2, _J, _deg_s)")
+                         "frame (keys carry their unit: _s, _m, _m2, _N, _J, _deg_s)")
     metrics.add_argument("--every", type=_positive, default=0.1, metavar="S",
                          help="table row interval [s] (text output only)")
     plot = sub.add_parser("plot", help="the paper's deployment and capture figures as PNG")
@@ -535,9 +536,11 @@ def cmd_warmup(args) -> int:
 
 
 def cmd_params(args) -> int:
+    import numpy as np
+
     from ..model.builder import build_model, scene_debris
     from ..model.materials import contact_table
-    from ..model.net import NodeKind, corner_threads
+    from ..model.net import ELEMENT_NAMES, ElementKind, NodeKind, corner_threads, thread_kinds
 
     scene = _scene(args)
     model = build_model(scene)
@@ -549,7 +552,8 @@ def cmd_params(args) -> int:
                                         "mass_kg": float(model.mass[nodes[0]]),
                                         "radius_m": float(model.radius[nodes[0]])}
     threads = {}
-    for label, index in (("inner", 0), ("corner", corner_threads(model.pairs, model.kind)[-1])):
+    corner = corner_threads(model.pairs, model.kind)
+    for label, index in (("inner", 0), ("corner", corner[-1] if corner.size else 0)):
         threads[label] = {
             "rest_length_m": float(model.rest_length[index]),
             "radius_m": float(model.thread_radius[index]),
@@ -559,7 +563,13 @@ def cmd_params(args) -> int:
             "c_t_Ns_per_m": float(model.transverse_damping[index]),
             "k_b_Nm_per_rad": float(model.bending_stiffness[index]),
             "c_b_Nms_per_rad": float(model.bending_damping[index]),
+            "breaking_tension_N": float(model.breaking_tension[index]),
         }
+    element_kinds = thread_kinds(model.pairs, model.kind)
+    strength = {ELEMENT_NAMES[ElementKind(kind)]: float(model.breaking_tension[
+        element_kinds == kind][0]) for kind in np.unique(element_kinds)}
+    if model.cable_count:
+        strength[ELEMENT_NAMES[ElementKind.CABLE]] = float(model.cable_breaking_tension[0])
     contact = {f"{a}/{b}": {"k_c_N_per_m": k, "c_c_Ns_per_m": c}
                for (a, b), (k, c) in contact_table(scene, model).items()}
     pybullet_fit = {}
@@ -576,7 +586,8 @@ def cmd_params(args) -> int:
         "node_count": model.node_count,
         "thread_count": model.thread_count,
         "total_mass_kg": float(model.mass.sum()),
-        "nodes": kinds, "threads": threads, "contact": contact,
+        "nodes": kinds, "threads": threads, "breaking_tension_N": strength,
+        "contact": contact,
         "bullet_engine_contact_fit": pybullet_fit,
     }
     debris = scene_debris(scene)
@@ -601,9 +612,12 @@ def cmd_params(args) -> int:
     rows = [("l_0 [m]", "rest_length_m"), ("r [m]", "radius_m"),
             ("k_a [N/m]", "k_a_N_per_m"), ("c_a [N s/m]", "c_a_Ns_per_m"),
             ("k_t [N/m]", "k_t_N_per_m"), ("c_t [N s/m]", "c_t_Ns_per_m"),
-            ("k_b [N m/rad]", "k_b_Nm_per_rad"), ("c_b [N m s/rad]", "c_b_Nms_per_rad")]
+            ("k_b [N m/rad]", "k_b_Nm_per_rad"), ("c_b [N m s/rad]", "c_b_Nms_per_rad"),
+            ("T_break [N]", "breaking_tension_N")]
     for label, key in rows:
         print(f"{label:<18}{threads['inner'][key]:>13.6g} {threads['corner'][key]:>13.6g}")
+    print("\nbreaking tension ([strength]; a knot efficiency on net and corner threads): "
+          + ", ".join(f"{name} {value:.6g} N" for name, value in strength.items()))
     print("\ncontact pair (Tables 5-6)        k_c [1e9 N/m]   c_c [N s/m]")
     for pair, v in contact.items():
         print(f"{pair:<33}{v['k_c_N_per_m'] / 1e9:>13.4f} {v['c_c_Ns_per_m']:>13.2f}")
@@ -663,6 +677,7 @@ def cmd_metrics(args) -> int:
         print(json.dumps(doc))
         return 0
     print(f"{rec.path}: {rec.status}, {rec.time.size} frames")
+    print("\n".join(strength_text(doc["strength"])))
     capture = doc.get("capture")
     if capture:
         def when(t):
@@ -698,6 +713,37 @@ def cmd_metrics(args) -> int:
                   f"{doc['net_height_m'][k]:15.5g}{extra}")
             next_t = t + args.every
     return 0
+
+
+def _where(margin: dict) -> str:
+    """An element at a time, as text: ``corner thread 220 (nodes 0-36) at 0.52 s``."""
+    e = margin["element"]
+    return (f"{e['kind']} {e['index']} (nodes {e['nodes'][0]}-{e['nodes'][1]}) at "
+            f"{margin['time_s']:.3f} s")
+
+
+def strength_text(doc: dict) -> list[str]:
+    """The safety margins of :func:`bulletnet.analysis.metrics.strength_summary` as lines:
+    the least safety factor, where (the element, its ends' positions) and when, the least
+    of each kind, the elements over their strength and the largest snap load."""
+    if doc["least_safety_factor"] is None:
+        return ["least safety factor: no element was ever taut"]
+    ends = " and ".join(_vec(p, ".3f") for p in doc["element"]["positions_m"])
+    lines = [f"least safety factor (breaking tension / largest tension): "
+             f"{doc['least_safety_factor']:.4g}, {_where(doc)}: {doc['tension_N']:.4g} N "
+             f"of {doc['breaking_tension_N']:.4g} N; its ends at {ends} m"]
+    lines += [f"  {kind + 's':<15} ({m['elements']:>4}): "
+              + (f"{m['least_safety_factor']:.4g}, {_where(m)}" if m["element"] else "never taut")
+              for kind, m in doc["by_kind"].items()]
+    over = doc["overloaded_elements"]
+    lines.append(f"elements at or over their breaking tension: {over}"
+                 + (f" (the first at {doc['first_overload_s']:.3f} s)" if over else ""))
+    snap = doc["largest_snap"]
+    if snap:
+        lines.append(f"largest snap load: {snap['tension_N']:.4g} N (utilisation "
+                     f"{snap['utilisation']:.3g}) in {_where(snap)}; "
+                     f"{doc['snap_events']} slack -> taut events in all")
+    return lines
 
 
 def _outcome_text(outcome: str, decided: float, reason: str) -> str:

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..common.errors import ScenarioError
 from . import debris as debris_module
-from .net import NetModel, NodeKind
+from .net import ElementKind, NetModel, NodeKind, thread_kinds
 from .scenario import Scenario
 from .state import NetState
 from .topology import center_nodes, net_corners, node_kinds, perimeter, thread_pairs
@@ -43,6 +43,19 @@ def thread_parameters(s: Scenario, rest: np.ndarray, r_thread: np.ndarray,
         "bending_stiffness": scale * k_b,
         "bending_damping": scale * 2.0 * damp.bending_ratio * k_b / omega_b,
     }
+
+
+def breaking_tension(s: Scenario, kinds: np.ndarray, area: np.ndarray) -> np.ndarray:
+    """Tension at which elements of :class:`~bulletnet.model.net.ElementKind` ``kinds`` and
+    sections ``area`` [m^2], shape (E,) each, break [N], shape (E,): their kind's breaking
+    stress (``[strength]``) times the section, times the knot efficiency for the knotted
+    kinds (net and corner threads)."""
+    st = s.strength
+    stress = np.array([st.thread_breaking_stress, st.corner_thread_breaking_stress,
+                       st.tether_breaking_stress, st.tether_breaking_stress,
+                       st.closing_breaking_stress])  # by ElementKind
+    knotted = np.isin(kinds, (ElementKind.NET, ElementKind.CORNER))
+    return stress[kinds] * area * np.where(knotted, st.knot_efficiency, 1.0)
 
 
 def lumped_masses(node_count: int, pairs: np.ndarray, thread_mass: np.ndarray) -> np.ndarray:
@@ -93,6 +106,7 @@ def _finish(s: Scenario, *, pairs, rest, r_thread, mass, kind, m_ref, fixed, loa
         nodes_per_side=nodes_per_side, mass=mass, radius=radius, kind=kind, pairs=pairs,
         rest_length=rest, thread_radius=r_thread, **params,
         inertia=0.4 * mass * radius**2, rest_axis=axis, fixed=fixed, load=load,
+        breaking_tension=breaking_tension(s, thread_kinds(pairs, kind), math.pi * r_thread**2),
         bilateral=bilateral, **(cables or {}))
 
 
@@ -190,6 +204,8 @@ def _closing(s: Scenario, ns: int, mass: np.ndarray) -> dict:
         "cable_rigidity": np.full(count, cl.young_modulus * area),
         "cable_damping_time": np.full(
             count, 2.0 * cl.damping_ratio / s.damping.axial_reference_frequency),
+        "cable_breaking_tension": breaking_tension(s, np.full(count, ElementKind.CABLE),
+                                                   np.full(count, area)),
     }
 
 

@@ -26,12 +26,46 @@ class NodeKind(IntEnum):
     CHASER = 5
 
 
+class ElementKind(IntEnum):
+    """Kind of a load-carrying element, for its strength: a thread of the model (by its end
+    nodes' kinds, :func:`thread_kinds`) or a closing cable."""
+
+    NET = 0
+    """A thread between two net nodes (Eq. 1's inner threads; the cantilever's beam)."""
+    CORNER = 1
+    """A corner thread: a net corner to its corner mass (Fig. 1)."""
+    BRIDLE = 2
+    """A bridle line: a corner mass to the tether's junction node."""
+    TETHER = 3
+    """A thread of the main tether (from the net's centre or the bridle's junction to the
+    chaser)."""
+    CABLE = 4
+    """A closing cable (one element however many rings it runs through)."""
+
+
+ELEMENT_NAMES = {ElementKind.NET: "net thread", ElementKind.CORNER: "corner thread",
+                 ElementKind.BRIDLE: "bridle line", ElementKind.TETHER: "tether thread",
+                 ElementKind.CABLE: "closing cable"}
+"""Each :class:`ElementKind` in words."""
+
+
+def thread_kinds(pairs: np.ndarray, kind: np.ndarray) -> np.ndarray:
+    """:class:`ElementKind` of each thread of ``pairs`` (P, 2) of nodes of ``kind`` (N,) [-],
+    shape (P,), int8: found by its ends' kinds, not by position (a tether's threads follow
+    the corner threads, a bridle's lines first)."""
+    ends = kind[pairs]
+    mass = (ends == NodeKind.CORNER_MASS).any(axis=1)
+    rope = ((ends == NodeKind.TETHER) | (ends == NodeKind.CHASER)).any(axis=1)
+    return np.select([mass & rope, mass, rope],
+                     [ElementKind.BRIDLE, ElementKind.CORNER, ElementKind.TETHER],
+                     ElementKind.NET).astype(np.int8)
+
+
 def corner_threads(pairs: np.ndarray, kind: np.ndarray) -> np.ndarray:
     """Indices of the corner threads (Fig. 1's threads from a net corner to its corner mass)
-    among threads ``pairs`` (P, 2) of nodes of ``kind`` (N,) [-], in thread order: found by
-    their ends' kinds, not by position (a tether's threads follow them)."""
-    ends = kind[pairs]
-    return np.flatnonzero((ends == NodeKind.CORNER_MASS).any(axis=1))
+    among threads ``pairs`` (P, 2) of nodes of ``kind`` (N,) [-], in thread order
+    (:func:`thread_kinds`: a bridle's lines, which also end on corner masses, are not)."""
+    return np.flatnonzero(thread_kinds(pairs, kind) == ElementKind.CORNER)
 
 
 @dataclass(frozen=True)
@@ -70,6 +104,9 @@ class NetModel:
     """Clamped nodes: position and orientation held [-], shape (N,), bool."""
     load: np.ndarray
     """Constant external force on each node (e.g. a tip load) [N], shape (N, 3)."""
+    breaking_tension: np.ndarray
+    """Tension at which each thread breaks [N], shape (P,) (``[strength]``; measured against,
+    never acting)."""
     bilateral: bool
     """Whether the elements also resist compression (a beam, not threads)."""
     cable_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -83,6 +120,8 @@ class NetModel:
     """Axial rigidity E A of each cable [N], shape (C,)."""
     cable_damping_time: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """c / k of each cable, 2 xi / omega_ref [s], shape (C,)."""
+    cable_breaking_tension: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Tension at which each cable breaks [N], shape (C,)."""
 
     def __post_init__(self):
         for name in self.__dataclass_fields__:

@@ -274,6 +274,32 @@ class Tether:
     laid straight between them (slack if shorter than its length)."""
 
 
+TECHNORA_BREAKING_STRESS = 3.4e9
+"""Tensile strength of Technora [Pa]: Teijin's datasheet, 24.5 cN/dtex at 1.39 g/cm^3,
+347 kgf/mm^2 (docs/strength.md, with the spread)."""
+
+
+@dataclass(frozen=True)
+class Strength:
+    """What each element can carry, measured against (never acting: an element over its
+    strength carries on; docs/strength.md). An element's breaking tension [N] is its breaking
+    stress times its section, pi d^2 / 4, times its knot efficiency where it is knotted."""
+
+    thread_breaking_stress: float = _f(TECHNORA_BREAKING_STRESS, "Pa", ">0")
+    """Breaking stress of the net's threads [Pa] (Technora: Teijin's datasheet)."""
+    corner_thread_breaking_stress: float = _f(TECHNORA_BREAKING_STRESS, "Pa", ">0")
+    """Breaking stress of the corner threads [Pa] (Technora, as the net's)."""
+    knot_efficiency: float = _f(0.25, "-", "(0,1]")
+    """Breaking tension of a knotted thread over the straight thread's [-], applied to the
+    net's threads and the corner threads (each is tied into net nodes at its ends); not to
+    the tether, the bridle or the closing cables (spliced, and run through rings). 0.25 is
+    Teijin's knot strength of Technora (loop strength 0.40; rope knots 0.4-0.8)."""
+    tether_breaking_stress: float = _f(TECHNORA_BREAKING_STRESS, "Pa", ">0")
+    """Breaking stress of the main tether and the bridle's lines [Pa] (Technora)."""
+    closing_breaking_stress: float = _f(TECHNORA_BREAKING_STRESS, "Pa", ">0")
+    """Breaking stress of the closing cables [Pa] (Technora)."""
+
+
 @dataclass(frozen=True)
 class Simulation:
     engine: str = _f("fast", "-", "choice", ENGINES)
@@ -344,6 +370,7 @@ class Scenario:
     debris: DebrisScene = field(default_factory=DebrisScene)
     closing: Closing = field(default_factory=Closing)
     tether: Tether = field(default_factory=Tether)
+    strength: Strength = field(default_factory=Strength)
     simulation: Simulation = field(default_factory=Simulation)
     outcome: OutcomeRules = field(default_factory=OutcomeRules)
     source: str = field(default="<defaults>", compare=False)

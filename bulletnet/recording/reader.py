@@ -41,6 +41,10 @@ class Recording:
     """Thread rest lengths [m], shape (P,)."""
     stiffness: np.ndarray
     """Thread axial stiffnesses k_a [N/m], shape (P,)."""
+    breaking_tension: np.ndarray | None = None
+    """Tension at which each thread breaks [N], shape (P,); None in a recording made before
+    it was recorded (:func:`bulletnet.analysis.metrics.breaking_tension` then derives it from
+    the recording's scene)."""
     debris: dict | None = None
     """Scenes with debris: ``position`` (T, 3) of the body-frame origin [m], ``orientation``
     (T, 4) quaternions x, y, z, w, ``velocity`` (T, 3) [m/s], ``angular_velocity`` (T, 3)
@@ -52,8 +56,9 @@ class Recording:
     cables: dict | None = None
     """Scenes with a closing mechanism: ``nodes`` (V,) and ``start`` (C + 1,) (each cable's
     polyline of nodes), ``rigidity`` (C,) E A [N], and per frame ``tension`` (T, C) [N],
-    ``length`` (T, C) [m], ``rest_length`` (T, C) [m] and the winches' ``work`` (T, C) [J]
-    (see :mod:`bulletnet.recording.writer`); else None."""
+    ``length`` (T, C) [m], ``rest_length`` (T, C) [m] and the winches' ``work`` (T, C) [J],
+    and ``breaking_tension`` (C,) [N] where recorded (see :mod:`bulletnet.recording.writer`);
+    else None."""
 
     @property
     def nodes_per_side(self) -> int:
@@ -110,6 +115,8 @@ def open_recording(path: str | os.PathLike) -> Recording:
                 pairs=f["threads/pairs"][()],
                 rest_length=f["threads/rest_length"][()],
                 stiffness=f["threads/stiffness"][()],
+                breaking_tension=(f["threads/breaking_tension"][()]
+                                  if "threads/breaking_tension" in f else None),
                 debris=_group(f, "debris", frames),
                 contacts=_group(f, "contacts", frames),
                 cables=_group(f, "cables", frames),

@@ -16,6 +16,7 @@ path                      shape         meaning
 /threads/rest_length      (P,)          l_0 [m]
 /threads/stiffness        (P,)          k_a [N/m]
 /threads/damping          (P,)          c_a [N s/m]
+/threads/breaking_tension (P,)          tension at which the thread breaks ([strength]) [N]
 /threads/tension          (T, P)        axial tension, 0 when slack [N]
 /threads/shear            (T, P)        transverse (shear) force magnitude, 0 without bending [N]
 /nodes/orientation        (T, N, 4)     unit quaternions x, y, z, w [-] (bending only)
@@ -41,6 +42,7 @@ path                      shape         meaning
                                         (scenes with a closing mechanism)
 /cables/start             (C + 1,)      first vertex of each cable, then V [-]
 /cables/rigidity          (C,)          E A [N]
+/cables/breaking_tension  (C,)          tension at which the cable breaks [N]
 /cables/tension           (T, C)        cable tension, 0 when slack [N]
 /cables/length            (T, C)        length along the cable's polyline [m]
 /cables/rest_length       (T, C)        rest length, shortened by the winch [m]
@@ -146,6 +148,7 @@ class Recorder:
         static("threads/rest_length", model.rest_length, "m")
         static("threads/stiffness", model.axial_stiffness, "N/m")
         static("threads/damping", model.axial_damping, "N*s/m")
+        static("threads/breaking_tension", model.breaking_tension, "N")
         self._series = {
             "time": growing("time", (), "s"),
             "position": growing("nodes/position", (n, 3), "m"),
@@ -180,6 +183,7 @@ class Recorder:
             static("cables/nodes", model.cable_nodes, "1")
             static("cables/start", model.cable_start, "1")
             static("cables/rigidity", model.cable_rigidity, "N")
+            static("cables/breaking_tension", model.cable_breaking_tension, "N")
             for name, units in (("tension", "N"), ("length", "m"), ("rest_length", "m"),
                                 ("work", "J")):
                 self._series["cable_" + name] = growing("cables/" + name, (model.cable_count,),

@@ -63,15 +63,46 @@ def _leave(rec: Recording) -> float | None:
     return leave_time(rec)
 
 
-Measures = dict[str, Callable[[Recording], float | int | str | None]]
+def min_safety_factor(rec: Recording) -> float | None:
+    """The run's least safety factor: breaking tension over the largest tension, min over the
+    elements [-] (:func:`bulletnet.analysis.metrics.safety`); None if none was ever taut."""
+    from ..analysis.metrics import safety
+
+    return safety(rec)["least_safety_factor"]
+
+
+def overloaded_elements(rec: Recording) -> int:
+    """Elements (threads and closing cables) at or over their breaking tension in some
+    frame [-] (:func:`bulletnet.analysis.metrics.safety`)."""
+    from ..analysis.metrics import safety
+
+    return safety(rec)["overloaded_elements"]
+
+
+def overloaded(rec: Recording) -> bool:
+    """Whether any element reached its breaking tension (a study's report gives the
+    probability of it)."""
+    return overloaded_elements(rec) > 0
+
+
+Measures = dict[str, Callable[[Recording], float | int | str | bool | None]]
 """Summary measures of a recording: column name (with its unit) -> function of the recording;
 None where a run never reaches it."""
 
+
+STRENGTH_MEASURES: Measures = {
+    "min_safety_factor": min_safety_factor,
+    "overloaded_elements": overloaded_elements,
+    "overloaded": overloaded,
+}
+"""Summary measures of every recording's safety margins: the least safety factor [-], the
+elements that reached their breaking tension [-] and whether any did (true/false)."""
 
 SUMMARY_MEASURES: Measures = {
     "final_mouth_area_m2": final_mouth_area,
     "deployed_90pct_s": deployed_90,
     "max_corner_tension_N": max_corner_tension,
+    **STRENGTH_MEASURES,
 }
 """Summary measures of a deployment's recording; keys carry the unit."""
 
@@ -82,10 +113,12 @@ CAPTURE_MEASURES: Measures = {
     "max_nodes_in_contact": max_nodes_in_contact,
     "leave_s": _leave,
     "outcome": outcome,
+    **STRENGTH_MEASURES,
 }
 """Summary measures of a capture's recording (a scene with debris and contact): first
 contact [s], largest wrap [-], most nodes in contact [-], leave time [s] (None: still on the
-debris at the end) and the outcome (None until the recording keeps one)."""
+debris at the end), the outcome (None until the recording keeps one) and
+:data:`STRENGTH_MEASURES`."""
 
 
 def summary_measures(scenario) -> Measures:

@@ -5,7 +5,8 @@ runs anything, so it also reads a study still running or stopped half-way).
 
 - ``status``: runs per status; ``wall_s``: their mean and total [s];
 - ``measures``: count, mean, std, min and max of each numeric measure over completed runs;
-- ``probabilities``: for the ``outcome`` column (where the recordings keep one) and, for each
+- ``probabilities``: for the ``outcome`` column (where the recordings keep one), each
+  true/false measure (``overloaded``: an element reached its breaking tension) and, for each
   measure some completed run never reached (``first_contact_s``, ``leave_s``,
   ``deployed_90pct_s``: the event "MEASURE reached", True or False), the probability of each
   value with its Wilson score interval (:func:`wilson`), overall and binned by each input
@@ -94,17 +95,17 @@ def probabilities(doc: dict, rows: list[dict], conf: float = 0.95, bins: int = 4
     """Outcome and event probabilities with Wilson intervals, overall and by input (see the
     module doc); {} if the study has neither."""
     done = [r for r in rows if r["status"] == "completed"]
-    columns = {}
+    columns = {}  # name -> (runs, the value of a run)
     if any(r.get("outcome") is not None for r in done):
-        columns["outcome"] = [r for r in done if r.get("outcome") is not None]
+        columns["outcome"] = ([r for r in done if r.get("outcome") is not None],
+                              lambda r: r["outcome"])
     for m in doc["measures"]:
-        if m != "outcome" and any(r.get(m) is None for r in done):
-            columns[f"{m} reached"] = done
+        if done and all(isinstance(r.get(m), bool) for r in done):
+            columns[m] = (done, lambda r, m=m: r[m])
+        elif m != "outcome" and any(r.get(m) is None for r in done):
+            columns[f"{m} reached"] = (done, lambda r, m=m: r[m] is not None)
     result = {}
-    for name, subset in columns.items():
-        def value(r, name=name):
-            return r["outcome"] if name == "outcome" else r[name[:-len(" reached")]] is not None
-
+    for name, (subset, value) in columns.items():
         values = [value(r) for r in subset]
         categories = [True, False] if name != "outcome" else sorted(set(values), key=str)
         by_input = {}
@@ -253,7 +254,7 @@ def plot_probabilities(probs: dict, out: Path) -> Path:
                              figsize=(3.0 * (1 + len(inputs)), 2.8 * len(probs)))
     for row, (name, p) in zip(axes, probs.items(), strict=True):
         # an event's probability of False is 1 - that of True: plot True only
-        values = ["True"] if name.endswith(" reached") else list(p["overall"])
+        values = ["True"] if name != "outcome" else list(p["overall"])
         _bars(row[0], [p["overall"][v] for v in values], values)
         row[0].set_title(f"{name}: overall", fontsize=9)
         row[0].set_ylabel("probability [-]")

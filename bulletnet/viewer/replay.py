@@ -67,6 +67,8 @@ class Track:
     """Thread (and cable span) tensions, 0 when slack [N], shape (T, P)."""
     shear: np.ndarray | None
     """Thread shear force magnitudes [N], shape (T, P); None without bending."""
+    utilisation: np.ndarray
+    """Thread (and cable span) tensions over their breaking tensions [-], shape (T, P)."""
     radius: np.ndarray
     """Node radii [m], shape (N,)."""
     kind: np.ndarray
@@ -199,22 +201,22 @@ def read_capture(rec: Recording, frames: np.ndarray) -> tuple[DebrisTrack | None
     return debris, contacts
 
 
-def cable_spans(rec: Recording, pairs: np.ndarray, tension: np.ndarray,
-                shear: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The threads with the closing cables' spans appended as more segments (each span
-    drawn with its cable's tension [N], no shear): pairs (P + S, 2), tension and shear
-    (T, P + S); the threads alone without cables."""
+def segments(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """What a replay draws as line segments: the threads, then the closing cables' spans
+    (each with its cable's tension). Their end nodes [-], shape (S, 2), and the element of
+    :func:`bulletnet.analysis.metrics.element_tension` (threads, then cables) each belongs
+    to [-], shape (S,); the threads alone without cables."""
+    threads = rec.pairs.shape[0]
     if rec.cables is None:
-        return pairs, tension, shear
+        return rec.pairs, np.arange(threads)
     nodes, start = rec.cables["nodes"], rec.cables["start"]
     cable = np.concatenate([np.full(b - a - 1, c) for c, (a, b) in
                             enumerate(zip(start[:-1], start[1:], strict=True))])
     first = np.concatenate([np.arange(a, b - 1) for a, b in zip(start[:-1], start[1:],
                                                                  strict=True)])
     spans = np.stack([nodes[first], nodes[first + 1]], axis=1)
-    return (np.concatenate([pairs, spans]),
-            np.concatenate([tension, rec.cables["tension"][:, cable]], axis=1),
-            np.concatenate([shear, np.zeros((shear.shape[0], spans.shape[0]))], axis=1))
+    return (np.concatenate([rec.pairs, spans]),
+            np.concatenate([np.arange(threads), threads + cable]))
 
 
 def make_track(rec: Recording, colour: tuple[int, int, int], every: int) -> Track:
@@ -228,11 +230,15 @@ def make_track(rec: Recording, colour: tuple[int, int, int], every: int) -> Trac
         score = scores[frames]
         outcome = (f"{judged.outcome} at {judged.time:.1f} s" if judged.decided
                    else judged.outcome)
-    pairs, tension, shear = cable_spans(rec, rec.pairs, rec.tension, rec.shear)
+    pairs, element = segments(rec)
+    tension = metrics.element_tension(rec)[frames][:, element]
+    shear = np.zeros_like(tension)  # cables carry no shear
+    shear[:, :rec.shear.shape[1]] = rec.shear[frames]
     return Track(
         label=f"{rec.path.stem} ({'with' if bending else 'no'} bending)",
         colour=colour, time=rec.time[frames], position=rec.position[frames],
-        tension=tension[frames], shear=shear[frames] if bending else None,
+        tension=tension, shear=shear if bending else None,
+        utilisation=tension / metrics.breaking_tension(rec)[element],
         radius=rec.radius, kind=rec.kind, pairs=pairs,
         mouth=metrics.mouth(rec)[frames], area=metrics.mouth_area(rec)[frames],
         height=metrics.net_height(rec)[frames], debris=debris, contacts=contacts,

@@ -1,5 +1,6 @@
 """The 3D scene of a replay on a viser server: per recording, its nodes as spheres at their
-radius, its corner masses, its threads as line segments coloured by tension (or shear), the
+radius, its corner masses, its threads as line segments coloured by tension (or shear, or
+utilisation: tension over breaking tension, dark at the breaking tension), the
 corner masses' trails and the debris mesh. Geometry that does not change (sphere mesh, radii,
 debris mesh) is sent once; a new frame sends only what moved, and node colours only when the
 set of nodes in contact changes.
@@ -51,7 +52,8 @@ class TrackLayer:
 
     def __init__(self, scene, replay: Replay, r: int):
         self.track: Track = replay.tracks[r]
-        self.force_scale = {"tension": replay.tension_scale, "shear": replay.shear_scale}
+        self.force_scale = {"tension": replay.tension_scale, "shear": replay.shear_scale,
+                            "utilisation": 1.0}
         self.colour_by = "tension"
         self.frame = -1
         self._contact_key = None
@@ -84,7 +86,7 @@ class TrackLayer:
         return self.track.position[j][self.track.pairs]
 
     def _thread_colours(self, j: int) -> np.ndarray:
-        force = self.track.shear if self.colour_by == "shear" else self.track.tension
+        force = getattr(self.track, self.colour_by)
         return thread_colours(force[j], self.force_scale[self.colour_by], self.track.colour)
 
     def _trail_points(self, j: int) -> np.ndarray:
@@ -119,8 +121,9 @@ class TrackLayer:
             self.debris.wxyz = track.debris.wxyz[j]
 
     def set_colour_by(self, quantity: str) -> None:
-        """Colour threads by ``tension`` or ``shear`` (bending recordings only)."""
-        if self.track.shear is None or quantity == self.colour_by:
+        """Colour threads by ``tension``, ``utilisation`` or ``shear`` (bending recordings
+        only)."""
+        if getattr(self.track, quantity) is None or quantity == self.colour_by:
             return
         self.colour_by = quantity
         self.threads.colors = self._thread_colours(self.frame)

@@ -54,10 +54,10 @@ class LiveViewer:
             for part in parts:
                 box = self.controls[part] = gui.add_checkbox(part, initial_value=True)
                 box.on_update(lambda event, part=part: self._show(part, event.target.value))
-            if replay.has_bending:
-                colour_by = self.controls["thread colour"] = gui.add_dropdown(
-                    "thread colour", ("tension", "shear"), initial_value="tension")
-                colour_by.on_update(lambda _: self._colour_by(colour_by.value))
+            colour_by = self.controls["thread colour"] = gui.add_dropdown(
+                "thread colour", ("tension", "utilisation")
+                + (("shear",) if replay.has_bending else ()), initial_value="tension")
+            colour_by.on_update(lambda _: self._colour_by(colour_by.value))
             if replay.has_contacts:
                 self.controls["contacts"] = gui.add_text("contacts", "", disabled=True)
         with gui.add_folder("Mouth"):
@@ -75,7 +75,8 @@ class LiveViewer:
         lines = [f"**{t.label}**: rgb{t.colour}" for t in replay.tracks]
         lines.append(f"Threads: slack rgb{SLACK}; taut light to dark up to "
                      f"{replay.tension_scale:.3g} N tension"
-                     + (f" ({replay.shear_scale:.3g} N shear)" if replay.has_bending else ""))
+                     + (f" ({replay.shear_scale:.3g} N shear)" if replay.has_bending else "")
+                     + " (utilisation: up to the breaking tension)")
         return "  \n".join(lines)
 
     def _show(self, part: str, visible: bool) -> None:

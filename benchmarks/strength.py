@@ -1,0 +1,94 @@
+"""Strength benchmark: the least safety factor, where and when, of the paper's deployment and
+capture and of the closing capture, without and with bending, at several record rates.
+
+The least safety factor (breaking tension over the largest tension of any thread or cable)
+and the largest snap load, at the scene's record rate and at higher ones: the margins are
+read from the recorded frames, and this model's snap loads last microseconds
+(docs/strength.md), so the rate decides how many of them a run's frames catch.
+
+Each run is recorded to OUT, measured (:func:`bulletnet.analysis.metrics.strength_summary`)
+and deleted (the 100 kHz deployments take 3-5 GB each). Writes OUT/strength.json (copy it to
+benchmarks/results/) and docs/figures/strength.png (``bulletnet plot``'s figure of the
+deployment without and with bending at 10 kHz). The capture is also run at every step over
+its first 15 s (``scene.duration`` 15).
+Usage: python benchmarks/strength.py [OUT] [--only NAME ...]
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+from common import output_dir, parser
+
+import bulletnet as bn
+from bulletnet.analysis.plots import plot_recordings
+
+FIGURE = Path(__file__).resolve().parent.parent / "docs" / "figures" / "strength.png"
+CASES = [*(("deployment", rate, None) for rate in (100.0, 1e3, 1e4, 1e5)),
+         ("capture", 10.0, None), ("capture", 200.0, None), ("capture", 2000.0, 15.0),
+         ("capture_closing", 10.0, None), ("capture_closing", 200.0, None)]
+"""(scene, record rate [Hz], duration [s] or None: the scene's own), each run without and
+with bending; each scene's first rate is its own. 2000 Hz is the capture's every step (its
+implicit Euler step is 5e-4 s), over its first 15 s (the net's deployment and first contact,
+where its least safety factors are at 200 Hz)."""
+FIGURE_RATE = 1e4
+"""Record rate of the deployments drawn in the figure [Hz]."""
+
+
+def measure(path: Path, wall: float) -> dict:
+    """The run's margins (JSON-ready, without the per-frame series) and its wall time [s]."""
+    rec = bn.open_recording(path)
+    doc = bn.metrics.strength_summary(rec)
+    doc.pop("max_utilisation")
+    return {"frames": int(rec.time.size), "wall_s": wall, **doc}
+
+
+def main() -> None:
+    p = parser(__doc__)
+    p.add_argument("--only", nargs="+", metavar="NAME", help="run these cases only (e.g. "
+                   "capture_plain_2000Hz_15s) and update them in an existing strength.json")
+    args = p.parse_args()
+    out = output_dir(args)
+    table = out / "strength.json"
+    doc = (json.loads(table.read_text()) if args.only and table.exists()
+           else {"bulletnet_version": bn.__version__, "runs": {}})
+    figure = {}
+    for scene, rate, duration in CASES:
+        for bending in (False, True):
+            name = (f"{scene}_{'bending' if bending else 'plain'}_{rate:g}Hz"
+                    + (f"_{duration:g}s" if duration else ""))
+            if args.only and name not in args.only:
+                continue
+            path = out / f"{name}.h5"
+            start = time.perf_counter()
+            overrides = {"bending.enabled": bending, "simulation.record_rate": rate}
+            if duration:
+                overrides["scene.duration"] = duration
+            bn.run(bn.load_scenario(scene, overrides), path, force=True)
+            doc["runs"][name] = {"scene": scene, "bending": bending, "record_rate_Hz": rate,
+                                 "duration_s": duration,
+                                 **measure(path, time.perf_counter() - start)}
+            run = doc["runs"][name]
+            print(f"{name}: least safety factor {run['least_safety_factor']:.4g} "
+                  f"({run['element']['kind']} {run['element']['index']} at "
+                  f"{run['time_s']:.4f} s), {run['wall_s']:.0f} s wall", flush=True)
+            if scene == "deployment" and rate == FIGURE_RATE:
+                figure[bending] = path
+            else:
+                path.unlink()
+            table.write_text(json.dumps(doc, indent=1))
+    if len(figure) == 2:
+        with tempfile.TemporaryDirectory() as tmp:
+            plot_recordings(bn.open_recording(figure[False]), bn.open_recording(figure[True]),
+                            tmp)
+            shutil.copy(Path(tmp) / "strength.png", FIGURE)
+        print(f"wrote {FIGURE}")
+    print(f"wrote {table}")
+
+
+if __name__ == "__main__":
+    main()
