@@ -9,6 +9,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..kernels.cable import CableArrays, cable_arrays
+from ..kernels.orbit import OrbitArrays, orbit_arrays
 from ..model.builder import scene_debris
 from ..model.net import NetModel
 from ..model.scenario import Scenario
@@ -59,6 +60,12 @@ def winch_cables(scenario: Scenario, model: NetModel) -> CableArrays:
     return cables
 
 
+def scene_orbit(scenario: Scenario) -> OrbitArrays | None:
+    """The scene's reference orbit as the kernels read it, or None without ``[orbit]``."""
+    o = scenario.orbit
+    return orbit_arrays(o.n, o.radial, o.along_track, o.origin) if o.enabled else None
+
+
 class Engine(ABC):
     """Advances a :class:`NetState` in place. Engines hold no state of the net but their own
     scratch space (and, for ``bullet``, the PyBullet world mirroring it)."""
@@ -70,7 +77,7 @@ class Engine(ABC):
         self.model = model
         self.cables = winch_cables(scenario, model)
         """The closing cables and their winches, as the kernels read and write them."""
-        self.arrays = integrators.model_arrays(model, self.cables)
+        self.arrays = integrators.model_arrays(model, self.cables, scene_orbit(scenario))
         self.work = integrators.workspace(model.node_count, model.thread_count)
         self._loads_work = integrators.workspace(model.node_count, model.thread_count)
         """Scratch space of :meth:`thread_loads` (the stepping workspace keeps its warm start)."""

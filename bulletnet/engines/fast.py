@@ -18,7 +18,7 @@ from ..solver import contact_stage as contact
 from ..solver import grid as grid_kernels
 from ..solver import integrators
 from .base import Engine
-from .debris_body import RigidDebris
+from .debris_body import RigidDebris, orbit_load
 
 
 class FastEngine(Engine):
@@ -30,7 +30,8 @@ class FastEngine(Engine):
         """The debris' PyBullet world (created on the first step)."""
         use_grid = (scenario.simulation.kernels == "grid" and self.dt > 0
                     and grid_kernels.applies(model))
-        self.grid = grid_kernels.build(model, self.arrays.cables) if use_grid else None
+        self.grid = (grid_kernels.build(model, self.arrays.cables, self.arrays.orbit)
+                     if use_grid else None)
         """The net's grid threads and structure-of-arrays state (None: the pair-list path)."""
         self.views = grid_kernels.views(self.grid) if use_grid else None
         """(N, 3) views of the grid's rows (None on the pair-list path)."""
@@ -137,6 +138,9 @@ class FastEngine(Engine):
                 self.contact = contact.grow_pair_list(self.contact)
                 a = self.contact.arrays
             if has_debris and taken:
+                if self.arrays.orbit is not None:  # held over the chunk, as the net's impulses
+                    a.impulse[:] += taken * dt * orbit_load(self.arrays.orbit, self.debris,
+                                                            state.debris)
                 self.rigid.step(a.impulse, taken * dt, state.debris)
             done += taken
             self._impulse_time += taken * dt

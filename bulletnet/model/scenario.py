@@ -275,6 +275,35 @@ class Tether:
 
 
 @dataclass(frozen=True)
+class Orbit:
+    enabled: bool = _f(False, "-")
+    """Whether every node, the chaser and the debris feel the Hill-Clohessy-Wiltshire
+    accelerations of a circular reference orbit (docs/tow.md); off, the scene is in free
+    space (``scene.gravity`` only)."""
+    altitude: float = _f(400e3, "m", ">0")
+    """Altitude of the circular reference orbit above the Earth's equatorial radius [m]
+    (gives the mean motion unless ``mean_motion`` is set)."""
+    mean_motion: float = _f(0.0, "rad/s", ">=0")
+    """Mean motion n of the reference orbit [rad/s]; 0: from ``altitude``,
+    sqrt(mu / (R + altitude)^3)."""
+    radial: tuple = _f((1.0, 0.0, 0.0), "-", "vec3")
+    """The scene direction of LVLH x, radial (away from the Earth) [-], shape (3,)."""
+    along_track: tuple = _f((0.0, 0.0, 1.0), "-", "vec3")
+    """The scene direction of LVLH y, along-track (the orbital velocity) [-], shape (3,),
+    orthogonal to ``radial``; the default puts the net's approach (+z, chaser to debris) on
+    the V-bar, the chaser trailing the debris, so a tow along -z is retrograde."""
+    origin: tuple = _f((0.0, 0.0, 0.0), "m", "vec3")
+    """The scene point on the reference orbit (the LVLH origin) [m], shape (3,)."""
+
+    @property
+    def n(self) -> float:
+        """The mean motion in force [rad/s]."""
+        from ..kernels.orbit import mean_motion
+
+        return self.mean_motion or mean_motion(self.altitude)
+
+
+@dataclass(frozen=True)
 class Simulation:
     engine: str = _f("fast", "-", "choice", ENGINES)
     """Engine: fast (compiled kernels), bullet (PyBullet bodies) or reference (scipy solve_ivp)."""
@@ -344,6 +373,7 @@ class Scenario:
     debris: DebrisScene = field(default_factory=DebrisScene)
     closing: Closing = field(default_factory=Closing)
     tether: Tether = field(default_factory=Tether)
+    orbit: Orbit = field(default_factory=Orbit)
     simulation: Simulation = field(default_factory=Simulation)
     outcome: OutcomeRules = field(default_factory=OutcomeRules)
     source: str = field(default="<defaults>", compare=False)
@@ -467,9 +497,27 @@ def _check_consistency(s: Scenario) -> None:
     if s.closing.enabled and s.simulation.engine == "reference":
         raise ScenarioError(f"{s.source}: closing.enabled: the reference engine has no "
                             "winches; use --engine fast or bullet")
+    if s.orbit.enabled:
+        _check_orbit(s)
     if s.outcome.enabled and not (s.debris.asset and s.contact.enabled):
         raise ScenarioError(f"{s.source}: outcome.enabled: judging a capture needs debris "
                             "(debris.asset) and contact (contact.enabled)")
+
+
+def _check_orbit(s: Scenario) -> None:
+    """An orbit's axes: nonzero and orthogonal; no orbit on the reference engine."""
+    o = s.orbit
+    radial, along = (math.hypot(*v) for v in (o.radial, o.along_track))
+    if radial == 0 or along == 0:
+        raise ScenarioError(f"{s.source}: orbit.{'radial' if radial == 0 else 'along_track'}: "
+                            "expected a nonzero direction [-]")
+    if abs(sum(a * b for a, b in zip(o.radial, o.along_track, strict=True))) \
+            > 1e-9 * radial * along:
+        raise ScenarioError(f"{s.source}: orbit.along_track: expected a direction orthogonal "
+                            f"to orbit.radial, got {list(o.along_track)}")
+    if s.simulation.engine == "reference" and s.debris.asset:
+        raise ScenarioError(f"{s.source}: orbit.enabled: the reference engine has no debris "
+                            "dynamics to put in orbit; use --engine fast or bullet")
 
 
 def to_dict(s: Any) -> dict:
