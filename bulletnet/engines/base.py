@@ -104,11 +104,17 @@ class Engine(ABC):
         self._impulse_time = 0.0
         """Simulated time since the contact impulses were last read [s]."""
         self.step_hooks: list[Callable[[], None]] = []
-        """Called between steps, in order: each chunk of the fast engine (a debris step), each
-        step of bullet; what must act inside a frame (:mod:`bulletnet.sim.observers`)."""
+        """Called between steps, in order: each chunk of the fast engine (``debris.step``,
+        in a scene with debris or hooks), each step of bullet; what must act inside a frame
+        (:mod:`bulletnet.sim.observers`). A hook may change :attr:`external`."""
+        self.span = (0.0, 0.0)
+        """Start and end [s] of the steps the engine takes next, until the next call of the
+        step hooks."""
 
-    def between_steps(self) -> None:
-        """Call the :attr:`step_hooks` (engines call this between steps)."""
+    def between_steps(self, start: float, end: float) -> None:
+        """Call the :attr:`step_hooks` before the steps from ``start`` to ``end`` [s] (engines
+        call this between steps)."""
+        self.span = (start, end)
         for hook in self.step_hooks:
             hook()
 

@@ -125,8 +125,8 @@ class BulletEngine(Engine):
         frame = self.pb.WORLD_FRAME
         mass_over_dt = self.model.mass[:, None] / dt
         first_step = self.steps
-        for _ in range(steps):
-            self.between_steps()
+        for k in range(steps):
+            self.between_steps(state.time + k * dt, state.time + (k + 1) * dt)
             reel(state.position, self.arrays.cables,
                  state.time + (self.steps - first_step) * dt, dt)
             quat, omega = self.rotations(state)

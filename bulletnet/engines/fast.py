@@ -98,6 +98,11 @@ class FastEngine(Engine):
                                          a.fixed, contact_arrays, self.dt, 0.0))]
         return groups
 
+    def _base(self) -> np.ndarray:
+        """Gravity, the model's loads and the external forces, m g + load + external [N],
+        shape (N, 3): the grid's constant forces."""
+        return self.model.mass[:, None] * self.gravity + self.model.load + self.external
+
     def advance(self, state: NetState, t_end: float) -> None:
         interval = t_end - state.time
         if interval <= 0:
@@ -105,20 +110,22 @@ class FastEngine(Engine):
         steps = self.steps_for(interval)
         dt = interval / steps
         has_debris = self.debris is not None  # (with contact off it still moves)
-        chunk = max(1, round(self.scenario.debris.step / dt)) if has_debris else steps
+        chunked = has_debris or bool(self.step_hooks)  # (hooks act between chunks)
+        chunk = max(1, round(self.scenario.debris.step / dt)) if chunked else steps
         if has_debris and self.rigid is None:
             self.rigid = RigidDebris(self.debris, state.debris)
         a = self.contact.arrays
         on_grid = self.grid is not None
         if on_grid:
-            base = self.model.mass[:, None] * self.gravity + self.model.load + self.external
-            grid_kernels.load(self.grid, state, base)
+            grid_kernels.load(self.grid, state, self._base())
         pos, vel, quat, omega = self._loop_arrays(state)
         free = self.free
         done = 0
         while done < steps:
             todo = min(chunk, steps - done)
-            self.between_steps()
+            self.between_steps(state.time + done * dt, state.time + (done + todo) * dt)
+            if on_grid and self.step_hooks:  # a hook may have changed the external forces
+                grid_kernels.load_forces(self.grid, self._base())
             if has_debris:
                 a.com[:], a.quat[0] = state.debris[COM], state.debris[QUAT]
                 a.velocity[:], a.omega[0] = state.debris[VELOCITY], state.debris[OMEGA]

@@ -303,6 +303,57 @@ class Orbit:
         return self.mean_motion or mean_motion(self.altitude)
 
 
+THRUST_PROFILES = ("step", "ramp", "zv", "zvd")
+THRUST_TRIGGERS = ("time", "captured")
+
+
+@dataclass(frozen=True)
+class Thrust:
+    enabled: bool = _f(False, "-")
+    """Whether the chaser (the tether's far end) thrusts (docs/tow.md); needs ``[tether]``
+    with a free chaser."""
+    force: float = _f(100.0, "N", ">0")
+    """Thrust at full level [N]."""
+    direction: tuple = _f((0.0, 0.0, -1.0), "-", "vec3")
+    """Scene direction of the thrust [-], shape (3,), normalized (default: away from the
+    net, along the tether)."""
+    profile: str = _f("zvd", "-", "choice", THRUST_PROFILES)
+    """Rise of the thrust (and its fall at the end of the burn): ``step`` (at once),
+    ``ramp`` (linear over ``rise_time``), ``zv`` or ``zvd`` (a step shaped by the
+    zero-vibration or zero-vibration-derivative shaper tuned to the tether's axial mode,
+    docs/tow.md)."""
+    rise_time: float = _f(10.0, "s", ">0")
+    """Time over which the ``ramp`` profile rises to full thrust (and falls) [s]."""
+    burn_time: float = _f(0.0, "s", ">=0")
+    """Length of the burn [s], from its start to the start of its fall (shaped as its
+    rise); 0: to the end of the run."""
+    trigger: str = _f("captured", "-", "choice", THRUST_TRIGGERS)
+    """When the burn starts: at ``trigger_time`` (``time``), or ``trigger_delay`` after the
+    frame at which the capture's outcome is decided ``captured`` (``captured``; needs
+    ``[outcome]``)."""
+    trigger_time: float = _f(0.0, "s", ">=0")
+    """Start of the burn with trigger ``time`` [s]."""
+    trigger_delay: float = _f(0.0, "s", ">=0")
+    """Delay from the capture's decision to the start of the burn with trigger
+    ``captured`` [s]."""
+
+
+@dataclass(frozen=True)
+class TowRules:
+    enabled: bool = _f(False, "-")
+    """Judge the tow while the run goes (from the start of the burn) and record its outcome
+    and measures (``tow_*`` attributes; needs ``[thrust]``, debris and contact)."""
+    safe_distance: float = _f(10.0, "m", ">0")
+    """``collided``: the chaser comes closer than this to the debris' centre of mass [m]
+    (the debris overruns it)."""
+    enclosed_fraction: float = _f(0.5, "-", "(0,1]")
+    """``slipped``: the share of the debris' volume inside the net's convex hull falls
+    below this [-] (the debris leaves the net)."""
+    slack_tension: float = _f(0.0, "N", ">=0")
+    """The tether counts as slack at or below this tension [N] (a snap is the return from
+    slack to taut)."""
+
+
 @dataclass(frozen=True)
 class Simulation:
     engine: str = _f("fast", "-", "choice", ENGINES)
@@ -374,6 +425,8 @@ class Scenario:
     closing: Closing = field(default_factory=Closing)
     tether: Tether = field(default_factory=Tether)
     orbit: Orbit = field(default_factory=Orbit)
+    thrust: Thrust = field(default_factory=Thrust)
+    tow: TowRules = field(default_factory=TowRules)
     simulation: Simulation = field(default_factory=Simulation)
     outcome: OutcomeRules = field(default_factory=OutcomeRules)
     source: str = field(default="<defaults>", compare=False)
@@ -499,6 +552,7 @@ def _check_consistency(s: Scenario) -> None:
                             "winches; use --engine fast or bullet")
     if s.orbit.enabled:
         _check_orbit(s)
+    _check_tow(s)
     if s.outcome.enabled and not (s.debris.asset and s.contact.enabled):
         raise ScenarioError(f"{s.source}: outcome.enabled: judging a capture needs debris "
                             "(debris.asset) and contact (contact.enabled)")
@@ -518,6 +572,27 @@ def _check_orbit(s: Scenario) -> None:
     if s.simulation.engine == "reference" and s.debris.asset:
         raise ScenarioError(f"{s.source}: orbit.enabled: the reference engine has no debris "
                             "dynamics to put in orbit; use --engine fast or bullet")
+
+
+def _check_tow(s: Scenario) -> None:
+    """A thrust needs a free chaser (and for trigger ``captured`` the judged capture); a
+    judged tow needs a thrust, debris and contact."""
+    th = s.thrust
+    if th.enabled and not (s.tether.enabled and s.tether.chaser_mass > 0):
+        raise ScenarioError(f"{s.source}: thrust.enabled: a thrust needs a chaser "
+                            "(tether.enabled with tether.chaser_mass > 0)")
+    if th.enabled and s.simulation.engine == "reference":
+        raise ScenarioError(f"{s.source}: thrust.enabled: the reference engine has no "
+                            "thrust; use --engine fast or bullet")
+    if th.enabled and math.hypot(*th.direction) == 0:
+        raise ScenarioError(f"{s.source}: thrust.direction: expected a nonzero direction [-]")
+    if th.enabled and th.trigger == "captured" and (
+            not s.outcome.enabled or s.outcome.stop_when_decided):
+        raise ScenarioError(f"{s.source}: thrust.trigger: 'captured' needs outcome.enabled "
+                            "without outcome.stop_when_decided; use 'time'")
+    if s.tow.enabled and not (th.enabled and s.debris.asset and s.contact.enabled):
+        raise ScenarioError(f"{s.source}: tow.enabled: judging a tow needs thrust.enabled, "
+                            "debris (debris.asset) and contact (contact.enabled)")
 
 
 def to_dict(s: Any) -> dict:

@@ -277,10 +277,15 @@ def load(grid: Grid, state, base) -> None:
     count = grid.count
     grid.x[:, :count] = state.position.T
     grid.v[:, :count] = state.velocity.T
-    grid.base[:, :count] = base.T
+    load_forces(grid, base)
     if state.oriented:
         grid.q[:, :count] = state.orientation.T
         grid.w[:, :count] = state.angular_velocity.T
+
+
+def load_forces(grid: Grid, base) -> None:
+    """Copy the constant forces ``base`` [N] (N, 3) into the grid's rows."""
+    grid.base[:, :grid.count] = base.T
 
 
 def store(grid: Grid, state) -> None:
