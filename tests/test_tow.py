@@ -284,3 +284,22 @@ def test_a_run_records_the_burn_and_the_tow(tmp_path):
     tow = summary(bn.open_recording(result.path))["tow"]
     assert tow["tow_outcome"] == "slipped" and tow["thrust_axial_frequency_rad_s"] > 0.0
 
+
+def test_removal_scene_runs_in_orbit_with_its_shaped_burn(tmp_path):
+    # scenarios/removal.toml: its axial mode is docs/tow.md's (k = E A / L of the 50 m,
+    # 2 mm tether, w = sqrt(k (1 / m_c + 1 / m_d)) with the CSM and the net towed), and a
+    # second of it, the burn started at once, runs in orbit and delivers the profile's
+    # impulse (the ZVD shaper's first step, a quarter of 200 N, for 1 s).
+    from bulletnet.model.builder import scene_debris
+    from bulletnet.model.thrust import axial_mode
+
+    s = bn.load_scenario("removal")
+    mode = axial_mode(s, bn.build_model(s), scene_debris(s).mass)
+    assert mode.stiffness == pytest.approx(70e9 * math.pi * 1e-6 / 50.0, rel=1e-12)
+    assert mode.omega == pytest.approx(2.1835, abs=1e-4)
+    short = s.with_overrides({"scene.duration": 1.0, "thrust.trigger": "time"})
+    result = bn.run(short, tmp_path / "removal.h5")
+    attrs = bn.open_recording(result.path).attrs
+    assert result.status == "completed" and attrs["thrust_start_s"] == 0.0
+    k = math.exp(-mode.zeta * math.pi / math.sqrt(1 - mode.zeta**2))
+    assert attrs["thrust_impulse_Ns"] == pytest.approx(200.0 / (1 + k) ** 2, rel=1e-12)
