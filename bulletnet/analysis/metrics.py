@@ -98,7 +98,8 @@ def deployed_time(rec: Recording, fraction: float = 0.9) -> float | None:
 def summary(rec: Recording) -> dict:
     """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys;
     the safety margins under ``strength`` (:func:`strength_summary`); with the capture
-    measures under ``capture`` for recordings with debris and contact."""
+    measures under ``capture`` for recordings with debris and contact, and the burn's and the
+    tow's recorded attributes (``thrust_*``, ``tow_*``) under ``tow``."""
     doc = {
         "time_s": rec.time.tolist(),
         "mouth_area_m2": mouth_area(rec).tolist(),
@@ -109,6 +110,10 @@ def summary(rec: Recording) -> dict:
     doc["strength"] = strength_summary(rec)
     if rec.debris is not None and rec.contacts is not None:
         doc["capture"] = capture_summary(rec)
+    tow = {k: v.item() if hasattr(v, "item") else v for k, v in rec.attrs.items()
+           if k.startswith(("tow_", "thrust_"))}
+    if tow:
+        doc["tow"] = tow  # the run's own judgement (docs/recordings.md), units in the keys
     return doc
 
 

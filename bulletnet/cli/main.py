@@ -699,6 +699,9 @@ def cmd_metrics(args) -> int:
               f"{capture['mouth_opening'][-1]:.3f}")
         print("outcome: " + _outcome_text(capture["outcome"], capture["outcome_time_s"],
                                           capture["outcome_reason"]))
+    tow = doc.get("tow")
+    if tow:
+        _print_tow(tow)
     print("   time [s]  mouth area [m^2]  mouth diagonal [m]  net height [m]"
           + ("  contacts [-]  wrap [-]  enclosed [-]  mouth [-]  quality [-]"
              if capture else ""))
@@ -744,6 +747,22 @@ def strength_text(doc: dict) -> list[str]:
                      f"{snap['utilisation']:.3g}) in {_where(snap)}; "
                      f"{doc['snap_events']} slack -> taut events in all")
     return lines
+
+
+def _print_tow(tow: dict) -> None:
+    """The burn and the tow's outcome and measures, from a recording's attributes."""
+    print(f"burn: from {tow['thrust_start_s']:.2f} s, impulse {tow['thrust_impulse_Ns']:.6g} "
+          f"N s; tether axial mode {tow['thrust_axial_frequency_rad_s']:.4g} rad/s (damping "
+          f"ratio {tow['thrust_damping_ratio']:.3g}, towed mass "
+          f"{tow['thrust_towed_mass_kg']:.6g} kg)")
+    if "tow_outcome" in tow:
+        print("tow: " + _outcome_text(tow["tow_outcome"], tow["tow_outcome_time_s"],
+                                      tow["tow_outcome_reason"]))
+        print(f"tether tension at the chaser: peak {tow['tow_peak_tension_N']:.4g} N, mean "
+              f"{tow['tow_mean_tension_N']:.4g} N; {tow['tow_snaps']} snaps (slack to taut), "
+              f"largest {tow['tow_snap_peak_N']:.4g} N; least chaser-debris distance "
+              f"{tow['tow_least_distance_m']:.3f} m; debris rate at most "
+              f"{tow['tow_largest_debris_rate_deg_s']:.3f} deg/s")
 
 
 def _outcome_text(outcome: str, decided: float, reason: str) -> str:

@@ -9,6 +9,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..kernels.cable import CableArrays, cable_arrays
+from ..kernels.orbit import OrbitArrays, orbit_arrays
 from ..model.builder import scene_debris
 from ..model.net import NetModel
 from ..model.scenario import Scenario
@@ -59,6 +60,12 @@ def winch_cables(scenario: Scenario, model: NetModel) -> CableArrays:
     return cables
 
 
+def scene_orbit(scenario: Scenario) -> OrbitArrays | None:
+    """The scene's reference orbit as the kernels read it, or None without ``[orbit]``."""
+    o = scenario.orbit
+    return orbit_arrays(o.n, o.radial, o.along_track, o.origin) if o.enabled else None
+
+
 class Engine(ABC):
     """Advances a :class:`NetState` in place. Engines hold no state of the net but their own
     scratch space (and, for ``bullet``, the PyBullet world mirroring it)."""
@@ -70,7 +77,7 @@ class Engine(ABC):
         self.model = model
         self.cables = winch_cables(scenario, model)
         """The closing cables and their winches, as the kernels read and write them."""
-        self.arrays = integrators.model_arrays(model, self.cables)
+        self.arrays = integrators.model_arrays(model, self.cables, scene_orbit(scenario))
         self.work = integrators.workspace(model.node_count, model.thread_count)
         self._loads_work = integrators.workspace(model.node_count, model.thread_count)
         """Scratch space of :meth:`thread_loads` (the stepping workspace keeps its warm start)."""
@@ -97,11 +104,17 @@ class Engine(ABC):
         self._impulse_time = 0.0
         """Simulated time since the contact impulses were last read [s]."""
         self.step_hooks: list[Callable[[], None]] = []
-        """Called between steps, in order: each chunk of the fast engine (a debris step), each
-        step of bullet; what must act inside a frame (:mod:`bulletnet.sim.observers`)."""
+        """Called between steps, in order: each chunk of the fast engine (``debris.step``,
+        in a scene with debris or hooks), each step of bullet; what must act inside a frame
+        (:mod:`bulletnet.sim.observers`). A hook may change :attr:`external`."""
+        self.span = (0.0, 0.0)
+        """Start and end [s] of the steps the engine takes next, until the next call of the
+        step hooks."""
 
-    def between_steps(self) -> None:
-        """Call the :attr:`step_hooks` (engines call this between steps)."""
+    def between_steps(self, start: float, end: float) -> None:
+        """Call the :attr:`step_hooks` before the steps from ``start`` to ``end`` [s] (engines
+        call this between steps)."""
+        self.span = (start, end)
         for hook in self.step_hooks:
             hook()
 

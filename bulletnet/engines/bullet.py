@@ -23,14 +23,14 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.cable import reel
-from ..model.debris import OMEGA, QUAT, VELOCITY, body_origin
+from ..model.debris import COM, OMEGA, QUAT, VELOCITY, body_origin
 from ..model.net import NodeKind
 from ..model.state import NetState
 from ..solver import integrators
 from ..solver.contact_stage import CLASS_OF_KIND
 from .base import Engine
 from .bullet_materials import fit
-from .debris_body import collision_shape, create_body, read_state
+from .debris_body import collision_shape, create_body, orbit_load, read_state
 from .quiet import bullet_client, pybullet
 
 
@@ -125,8 +125,8 @@ class BulletEngine(Engine):
         frame = self.pb.WORLD_FRAME
         mass_over_dt = self.model.mass[:, None] / dt
         first_step = self.steps
-        for _ in range(steps):
-            self.between_steps()
+        for k in range(steps):
+            self.between_steps(state.time + k * dt, state.time + (k + 1) * dt)
             reel(state.position, self.arrays.cables,
                  state.time + (self.steps - first_step) * dt, dt)
             quat, omega = self.rotations(state)
@@ -145,6 +145,8 @@ class BulletEngine(Engine):
                 torque = w.torque * scale[:, None]
                 for body, tau in zip(self.bodies, torque.tolist(), strict=True):
                     apply_torque(body, -1, tau, frame)
+            if self.arrays.orbit is not None and self.debris_body is not None:
+                self._orbit_debris(state)
             c.stepSimulation()
             self.steps += 1
             if self.materials is not None:
@@ -156,6 +158,16 @@ class BulletEngine(Engine):
             read_state(c, self.debris_body, state.debris, self.debris)
         self._impulse_time += interval
         state.time = t_end
+
+    def _orbit_debris(self, state: NetState) -> None:
+        """Apply the orbit's HCW force and gravity-gradient torque to the debris' body, at its
+        state before this step (:func:`~bulletnet.engines.debris_body.orbit_load`)."""
+        c = self.client
+        read_state(c, self.debris_body, state.debris, self.debris)
+        load = orbit_load(self.arrays.orbit, self.debris, state.debris).tolist()
+        c.applyExternalForce(self.debris_body, -1, load[:3], state.debris[COM].tolist(),
+                             self.pb.WORLD_FRAME)
+        c.applyExternalTorque(self.debris_body, -1, load[3:], self.pb.WORLD_FRAME)
 
     def _collect_contacts(self, dt: float, t: float) -> None:
         """Add the step's PyBullet contact impulses (normal force x dt) to the per-node

@@ -10,7 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..kernels.orbit import OrbitArrays, debris_load
 from ..model.debris import (
+    COM,
     OMEGA,
     QUAT,
     VELOCITY,
@@ -18,6 +20,7 @@ from ..model.debris import (
     body_origin,
     part_mesh,
     quaternion_product,
+    rotation_matrix,
     rotation_quaternion,
 )
 from .quiet import bullet_client, pybullet, quiet_stdout
@@ -120,6 +123,15 @@ class RigidDebris:
 
     def close(self) -> None:
         self.client.disconnect()
+
+
+def orbit_load(orbit: OrbitArrays, debris: Debris, state: np.ndarray) -> np.ndarray:
+    """The reference orbit's HCW force [N] on ``debris`` in ``state`` (at its centre of mass)
+    and its gravity-gradient torque [N m] (:func:`~bulletnet.kernels.orbit.debris_load`;
+    its inertia turned into the scene's frame), shape (6,)."""
+    rot = rotation_matrix(state[QUAT])
+    return debris_load(orbit, debris.mass, rot @ debris.inertia @ rot.T, state[COM],
+                       state[VELOCITY])
 
 
 def read_state(client, body: int, state: np.ndarray, debris: Debris) -> None:

@@ -19,7 +19,7 @@ from ..solver import contact_stage as contact
 from ..solver import grid as grid_kernels
 from ..solver import integrators
 from .base import Engine
-from .debris_body import RigidDebris
+from .debris_body import RigidDebris, orbit_load
 
 
 class FastEngine(Engine):
@@ -31,7 +31,8 @@ class FastEngine(Engine):
         """The debris' PyBullet world (created on the first step)."""
         use_grid = (scenario.simulation.kernels == "grid" and self.dt > 0
                     and grid_kernels.applies(model))
-        self.grid = grid_kernels.build(model, self.arrays.cables) if use_grid else None
+        self.grid = (grid_kernels.build(model, self.arrays.cables, self.arrays.orbit)
+                     if use_grid else None)
         """The net's grid threads and structure-of-arrays state (None: the pair-list path)."""
         self.views = grid_kernels.views(self.grid) if use_grid else None
         """(N, 3) views of the grid's rows (None on the pair-list path)."""
@@ -101,6 +102,11 @@ class FastEngine(Engine):
                                          a.fixed, contact_arrays, self.dt, 0.0))]
         return groups
 
+    def _base(self) -> np.ndarray:
+        """Gravity, the model's loads and the external forces, m g + load + external [N],
+        shape (N, 3): the grid's constant forces."""
+        return self.model.mass[:, None] * self.gravity + self.model.load + self.external
+
     def advance(self, state: NetState, t_end: float) -> None:
         interval = t_end - state.time
         if interval <= 0:
@@ -108,20 +114,22 @@ class FastEngine(Engine):
         steps = self.steps_for(interval)
         dt = interval / steps
         has_debris = self.debris is not None  # (with contact off it still moves)
-        chunk = max(1, round(self.scenario.debris.step / dt)) if has_debris else steps
+        chunked = has_debris or bool(self.step_hooks)  # (hooks act between chunks)
+        chunk = max(1, round(self.scenario.debris.step / dt)) if chunked else steps
         if has_debris and self.rigid is None:
             self.rigid = RigidDebris(self.debris, state.debris)
         a = self.contact.arrays
         on_grid = self.grid is not None
         if on_grid:
-            base = self.model.mass[:, None] * self.gravity + self.model.load + self.external
-            grid_kernels.load(self.grid, state, base)
+            grid_kernels.load(self.grid, state, self._base())
         pos, vel, quat, omega = self._loop_arrays(state)
         free = self.free
         done = 0
         while done < steps:
             todo = min(chunk, steps - done)
-            self.between_steps()
+            self.between_steps(state.time + done * dt, state.time + (done + todo) * dt)
+            if on_grid and self.step_hooks:  # a hook may have changed the external forces
+                grid_kernels.load_forces(self.grid, self._base())
             if has_debris:
                 a.com[:], a.quat[0] = state.debris[COM], state.debris[QUAT]
                 a.velocity[:], a.omega[0] = state.debris[VELOCITY], state.debris[OMEGA]
@@ -141,6 +149,9 @@ class FastEngine(Engine):
                 self.contact = contact.grow_pair_list(self.contact)
                 a = self.contact.arrays
             if has_debris and taken:
+                if self.arrays.orbit is not None:  # held over the chunk, as the net's impulses
+                    a.impulse[:] += taken * dt * orbit_load(self.arrays.orbit, self.debris,
+                                                            state.debris)
                 self.rigid.step(a.impulse, taken * dt, state.debris)
             done += taken
             self._impulse_time += taken * dt

@@ -301,6 +301,86 @@ class Strength:
 
 
 @dataclass(frozen=True)
+class Orbit:
+    enabled: bool = _f(False, "-")
+    """Whether every node, the chaser and the debris feel the Hill-Clohessy-Wiltshire
+    accelerations of a circular reference orbit (docs/tow.md); off, the scene is in free
+    space (``scene.gravity`` only)."""
+    altitude: float = _f(400e3, "m", ">0")
+    """Altitude of the circular reference orbit above the Earth's equatorial radius [m]
+    (gives the mean motion unless ``mean_motion`` is set)."""
+    mean_motion: float = _f(0.0, "rad/s", ">=0")
+    """Mean motion n of the reference orbit [rad/s]; 0: from ``altitude``,
+    sqrt(mu / (R + altitude)^3)."""
+    radial: tuple = _f((1.0, 0.0, 0.0), "-", "vec3")
+    """The scene direction of LVLH x, radial (away from the Earth) [-], shape (3,)."""
+    along_track: tuple = _f((0.0, 0.0, 1.0), "-", "vec3")
+    """The scene direction of LVLH y, along-track (the orbital velocity) [-], shape (3,),
+    orthogonal to ``radial``; the default puts the net's approach (+z, chaser to debris) on
+    the V-bar, the chaser trailing the debris, so a tow along -z is retrograde."""
+    origin: tuple = _f((0.0, 0.0, 0.0), "m", "vec3")
+    """The scene point on the reference orbit (the LVLH origin) [m], shape (3,)."""
+
+    @property
+    def n(self) -> float:
+        """The mean motion in force [rad/s]."""
+        from ..kernels.orbit import mean_motion
+
+        return self.mean_motion or mean_motion(self.altitude)
+
+
+THRUST_PROFILES = ("step", "ramp", "zv", "zvd")
+THRUST_TRIGGERS = ("time", "captured")
+
+
+@dataclass(frozen=True)
+class Thrust:
+    enabled: bool = _f(False, "-")
+    """Whether the chaser (the tether's far end) thrusts (docs/tow.md); needs ``[tether]``
+    with a free chaser."""
+    force: float = _f(100.0, "N", ">0")
+    """Thrust at full level [N]."""
+    direction: tuple = _f((0.0, 0.0, -1.0), "-", "vec3")
+    """Scene direction of the thrust [-], shape (3,), normalized (default: away from the
+    net, along the tether)."""
+    profile: str = _f("zvd", "-", "choice", THRUST_PROFILES)
+    """Rise of the thrust (and its fall at the end of the burn): ``step`` (at once),
+    ``ramp`` (linear over ``rise_time``), ``zv`` or ``zvd`` (a step shaped by the
+    zero-vibration or zero-vibration-derivative shaper tuned to the tether's axial mode,
+    docs/tow.md)."""
+    rise_time: float = _f(10.0, "s", ">0")
+    """Time over which the ``ramp`` profile rises to full thrust (and falls) [s]."""
+    burn_time: float = _f(0.0, "s", ">=0")
+    """Length of the burn [s], from its start to the start of its fall (shaped as its
+    rise); 0: to the end of the run."""
+    trigger: str = _f("captured", "-", "choice", THRUST_TRIGGERS)
+    """When the burn starts: at ``trigger_time`` (``time``), or ``trigger_delay`` after the
+    frame at which the capture's outcome is decided ``captured`` (``captured``; needs
+    ``[outcome]``)."""
+    trigger_time: float = _f(0.0, "s", ">=0")
+    """Start of the burn with trigger ``time`` [s]."""
+    trigger_delay: float = _f(0.0, "s", ">=0")
+    """Delay from the capture's decision to the start of the burn with trigger
+    ``captured`` [s]."""
+
+
+@dataclass(frozen=True)
+class TowRules:
+    enabled: bool = _f(False, "-")
+    """Judge the tow while the run goes (from the start of the burn) and record its outcome
+    and measures (``tow_*`` attributes; needs ``[thrust]``, debris and contact)."""
+    safe_distance: float = _f(10.0, "m", ">0")
+    """``collided``: the chaser comes closer than this to the debris' centre of mass [m]
+    (the debris overruns it)."""
+    enclosed_fraction: float = _f(0.5, "-", "(0,1]")
+    """``slipped``: the share of the debris' volume inside the net's convex hull falls
+    below this [-] (the debris leaves the net)."""
+    slack_tension: float = _f(0.0, "N", ">=0")
+    """The tether counts as slack at or below this tension [N] (a snap is the return from
+    slack to taut)."""
+
+
+@dataclass(frozen=True)
 class Simulation:
     engine: str = _f("fast", "-", "choice", ENGINES)
     """Engine: fast (compiled kernels), bullet (PyBullet bodies) or reference (scipy solve_ivp)."""
@@ -371,6 +451,9 @@ class Scenario:
     closing: Closing = field(default_factory=Closing)
     tether: Tether = field(default_factory=Tether)
     strength: Strength = field(default_factory=Strength)
+    orbit: Orbit = field(default_factory=Orbit)
+    thrust: Thrust = field(default_factory=Thrust)
+    tow: TowRules = field(default_factory=TowRules)
     simulation: Simulation = field(default_factory=Simulation)
     outcome: OutcomeRules = field(default_factory=OutcomeRules)
     source: str = field(default="<defaults>", compare=False)
@@ -494,9 +577,49 @@ def _check_consistency(s: Scenario) -> None:
     if s.closing.enabled and s.simulation.engine == "reference":
         raise ScenarioError(f"{s.source}: closing.enabled: the reference engine has no "
                             "winches; use --engine fast or bullet")
+    if s.orbit.enabled:
+        _check_orbit(s)
+    _check_tow(s)
     if s.outcome.enabled and not (s.debris.asset and s.contact.enabled):
         raise ScenarioError(f"{s.source}: outcome.enabled: judging a capture needs debris "
                             "(debris.asset) and contact (contact.enabled)")
+
+
+def _check_orbit(s: Scenario) -> None:
+    """An orbit's axes: nonzero and orthogonal; no orbit on the reference engine."""
+    o = s.orbit
+    radial, along = (math.hypot(*v) for v in (o.radial, o.along_track))
+    if radial == 0 or along == 0:
+        raise ScenarioError(f"{s.source}: orbit.{'radial' if radial == 0 else 'along_track'}: "
+                            "expected a nonzero direction [-]")
+    if abs(sum(a * b for a, b in zip(o.radial, o.along_track, strict=True))) \
+            > 1e-9 * radial * along:
+        raise ScenarioError(f"{s.source}: orbit.along_track: expected a direction orthogonal "
+                            f"to orbit.radial, got {list(o.along_track)}")
+    if s.simulation.engine == "reference" and s.debris.asset:
+        raise ScenarioError(f"{s.source}: orbit.enabled: the reference engine has no debris "
+                            "dynamics to put in orbit; use --engine fast or bullet")
+
+
+def _check_tow(s: Scenario) -> None:
+    """A thrust needs a free chaser (and for trigger ``captured`` the judged capture); a
+    judged tow needs a thrust, debris and contact."""
+    th = s.thrust
+    if th.enabled and not (s.tether.enabled and s.tether.chaser_mass > 0):
+        raise ScenarioError(f"{s.source}: thrust.enabled: a thrust needs a chaser "
+                            "(tether.enabled with tether.chaser_mass > 0)")
+    if th.enabled and s.simulation.engine == "reference":
+        raise ScenarioError(f"{s.source}: thrust.enabled: the reference engine has no "
+                            "thrust; use --engine fast or bullet")
+    if th.enabled and math.hypot(*th.direction) == 0:
+        raise ScenarioError(f"{s.source}: thrust.direction: expected a nonzero direction [-]")
+    if th.enabled and th.trigger == "captured" and (
+            not s.outcome.enabled or s.outcome.stop_when_decided):
+        raise ScenarioError(f"{s.source}: thrust.trigger: 'captured' needs outcome.enabled "
+                            "without outcome.stop_when_decided; use 'time'")
+    if s.tow.enabled and not (th.enabled and s.debris.asset and s.contact.enabled):
+        raise ScenarioError(f"{s.source}: tow.enabled: judging a tow needs thrust.enabled, "
+                            "debris (debris.asset) and contact (contact.enabled)")
 
 
 def to_dict(s: Any) -> dict:

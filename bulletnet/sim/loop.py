@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.capture_score import interior_samples
+from ..analysis.capture_score import ScoreGeometry, interior_samples
 from ..analysis.stability import Limits, analytical_limits
 from ..common.errors import BulletnetError, DivergenceError, ScenarioError
 from ..engines import make_engine
@@ -25,6 +25,7 @@ from ..recording.writer import Recorder
 from .compile_ahead import compile_ahead
 from .observers import Observer, Outcome, Profiling, Recording, Run
 from .profiling import Profile
+from .tow import ThrustControl, TowOutcome
 from .winch import WinchControl
 
 MAX_RECORDING_BYTES = 2e9
@@ -234,7 +235,8 @@ def _observers(scenario: Scenario, model, engine, state: NetState,
                out: str | os.PathLike | None, profile: Profile | None) -> list[Observer]:
     """The observers of a run, in the order they see each frame: the winch control (its
     wrap trigger acts before the frame is recorded), the recorder, the outcome monitor, the
-    profiler."""
+    thrust control (it starts the burn at the frame that decides the capture) and the tow's
+    judge, the profiler."""
     observers: list[Observer] = []
     if scenario.closing.enabled:
         observers.append(WinchControl(scenario))
@@ -250,8 +252,17 @@ def _observers(scenario: Scenario, model, engine, state: NetState,
             "bulletnet_version": _version(),
         }, oriented=state.oriented, debris=engine.debris, interior_samples=samples,
             contact=scenario.contact.enabled)))
-    if scenario.outcome.enabled:
-        observers.append(Outcome(scenario, model, engine, samples))
+    outcome = Outcome(scenario, model, engine, samples) if scenario.outcome.enabled else None
+    if outcome is not None:
+        observers.append(outcome)
+    if scenario.thrust.enabled:
+        thrust = ThrustControl(scenario, model, engine,
+                               None if outcome is None else outcome.monitor)
+        observers.append(thrust)
+        if scenario.tow.enabled:
+            geometry = (outcome.monitor.geometry if outcome is not None else
+                        ScoreGeometry.of(model, samples, engine.debris.center_of_mass))
+            observers.append(TowOutcome(scenario, geometry, thrust))
     if profile is not None:
         observers.append(Profiling(profile, list(observers)))
     return observers

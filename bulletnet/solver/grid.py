@@ -52,6 +52,7 @@ from ..kernels.cable import (
     cable_forces,
     clear_cable_nodes,
 )
+from ..kernels.orbit import OrbitArrays, clear_orbit_nodes, orbit_forces
 from ..model.net import NetModel
 from ..model.topology import thread_pairs
 
@@ -160,6 +161,9 @@ class Grid(NamedTuple):
     """The same for thread v(i), shape (9, Ns + Ns^2)."""
     cables: CableArrays | None
     """The closing cables (pair-list kernels on the views); None without."""
+    orbit: OrbitArrays | None = None
+    """The reference orbit (HCW forces into the other rows, :mod:`bulletnet.kernels.orbit`);
+    None without."""
 
 
 class GridViews(NamedTuple):
@@ -218,9 +222,11 @@ def _carve(shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
     return out
 
 
-def build(model: NetModel, cables: CableArrays | None = None) -> Grid:
+def build(model: NetModel, cables: CableArrays | None = None,
+          orbit: OrbitArrays | None = None) -> Grid:
     """The grid of a net that :func:`applies`: its threads' parameters rearranged by stencil
-    and zeroed state and scratch, and its closing ``cables`` (None: none)."""
+    and zeroed state and scratch, its closing ``cables`` and reference ``orbit`` (None:
+    none)."""
     ns, count, pairs, mass = model.nodes_per_side, model.node_count, model.pairs, model.mass
     per_thread = np.vstack([  # rows: rest, k, c, then the bending parameters (h_bend)
         model.rest_length, model.axial_stiffness, model.axial_damping,
@@ -252,7 +258,7 @@ def build(model: NetModel, cables: CableArrays | None = None) -> Grid:
         blocks=blocks, wh=wh, wv=wv, cg=cg, block_inv=block_inv, o_tension=np.zeros(q),
         o_along=np.zeros(q), o_across=np.zeros(q), o_axis=o_axis, o_bend=o[3:7].copy(),
         o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q), bh=bh, bv=bv,
-        cables=cables)
+        cables=cables, orbit=orbit)
 
 
 def views(grid: Grid) -> GridViews:
@@ -271,10 +277,15 @@ def load(grid: Grid, state, base) -> None:
     count = grid.count
     grid.x[:, :count] = state.position.T
     grid.v[:, :count] = state.velocity.T
-    grid.base[:, :count] = base.T
+    load_forces(grid, base)
     if state.oriented:
         grid.q[:, :count] = state.orientation.T
         grid.w[:, :count] = state.angular_velocity.T
+
+
+def load_forces(grid: Grid, base) -> None:
+    """Copy the constant forces ``base`` [N] (N, 3) into the grid's rows."""
+    grid.base[:, :grid.count] = base.T
 
 
 def store(grid: Grid, state) -> None:
@@ -350,14 +361,16 @@ def _linearize_stencil(x, v, off, rest, k, c, tension_e, axis, blocks, row, dt, 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def _other_threads(grid, views, dt, linearize):
-    """The other threads' and the cables' forces [N] into ``other`` (pair-list kernels on the
-    views); with ``linearize`` also their directions and implicit blocks."""
+    """The other threads', the cables' and the orbit's forces [N] into ``other`` (pair-list
+    kernels on the views); with ``linearize`` also the threads' and cables' directions and
+    implicit blocks."""
     other, pairs, cables = views.other, grid.o_pairs, grid.cables
     for q in range(pairs.shape[0]):
         for end in range(2):
             for a in range(3):
                 other[pairs[q, end], a] = 0.0
     clear_cable_nodes(cables, other)
+    clear_orbit_nodes(grid.orbit, other)
     if linearize:
         axial_linearization(views.position, views.velocity, pairs, grid.o_rest, grid.o_k,
                             grid.o_c, False, dt, other, grid.o_tension, grid.o_along,
@@ -366,6 +379,7 @@ def _other_threads(grid, views, dt, linearize):
         axial_forces(views.position, views.velocity, pairs, grid.o_rest, grid.o_k, grid.o_c,
                      False, other, grid.o_tension)
     cable_forces(views.position, views.velocity, cables, other, linearize, dt)
+    orbit_forces(views.position, views.velocity, grid.mass, grid.orbit, other)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")

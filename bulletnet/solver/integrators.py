@@ -45,6 +45,7 @@ from ..kernels.cable import (
     cable_forces,
     reel,
 )
+from ..kernels.orbit import OrbitArrays, orbit_forces
 from ..model.net import NetModel
 from . import grid as grid_kernels
 from .contact_stage import contact_stage, ensure_pairs
@@ -112,11 +113,16 @@ class ModelArrays(NamedTuple):
     cables: CableArrays | None
     """The closing cables and their winches (:mod:`bulletnet.kernels.cable`); None without
     (the cable kernels then compile to nothing)."""
+    orbit: OrbitArrays | None = None
+    """The reference orbit whose HCW accelerations every node feels
+    (:mod:`bulletnet.kernels.orbit`); None without (nothing compiled)."""
 
 
-def model_arrays(model: NetModel, cables: CableArrays | None = None) -> ModelArrays:
+def model_arrays(model: NetModel, cables: CableArrays | None = None,
+                 orbit: OrbitArrays | None = None) -> ModelArrays:
     """The model's arrays as the compiled kernels read them, with the closing ``cables``
-    (:func:`~bulletnet.kernels.cable.cable_arrays`; None, or none in them: no cables)."""
+    (:func:`~bulletnet.kernels.cable.cable_arrays`; None, or none in them: no cables) and
+    the reference ``orbit`` (None: none)."""
     m = model
     rot_c, rot_k = rotational_bounds(m)
     return ModelArrays(
@@ -126,7 +132,7 @@ def model_arrays(model: NetModel, cables: CableArrays | None = None) -> ModelArr
         rest_axis=m.rest_axis, fixed=m.fixed, load=m.load, bilateral=m.bilateral,
         inv_mass=np.where(m.fixed, 0.0, 1.0 / m.mass),  # clamped nodes: no velocity change
         radius=m.radius, rot_c=rot_c, rot_k=rot_k,
-        cables=cables if cables is not None and cables.rest.shape[0] else None)
+        cables=cables if cables is not None and cables.rest.shape[0] else None, orbit=orbit)
 
 
 class Workspace(NamedTuple):
@@ -280,6 +286,7 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     axial_linearization(pos, vel, pairs, rest, k_a, c_a, bilateral, dt, force, tension, along,
                         across, axis)
     cable_forces(pos, vel, cables, force, True, dt)
+    orbit_forces(pos, vel, mass, model.orbit, force)  # explicit, Coriolis term included
     r, z, d, ad = cg[0], cg[1], cg[2], cg[3]
     # right-hand side dt F - dt^2 K v, in r
     for i in range(n):
@@ -358,6 +365,7 @@ def symplectic_increment(pos, vel, model, work, dt):
     axial_forces(pos, vel, model.pairs, model.rest, model.k_a, model.c_a, model.bilateral,
                  force, work.tension)
     cable_forces(pos, vel, model.cables, force, False, 0.0)
+    orbit_forces(pos, vel, model.mass, model.orbit, force)
     for i in range(pos.shape[0]):
         h = dt * inv_mass[i]
         for a in range(3):

@@ -1,0 +1,92 @@
+"""The tow: the chaser's burn and the judge of its outcome, as observers of the run loop.
+
+- :class:`ThrustControl` starts the burn by the scene's trigger (``[thrust]``: a time, or a
+  delay after the frame at which the capture is decided ``captured``) and, as an engine step
+  hook, sets the chaser's external force to the profile's mean over the steps to come (the
+  fast engine's chunks of ``debris.step``, 1/240 s by default; bullet's steps): the impulse
+  delivered is the profile's to round-off (:mod:`bulletnet.model.thrust`).
+- :class:`TowOutcome` judges the tow from the burn's start on, frame by frame
+  (:class:`~bulletnet.analysis.tow_score.TowMonitor`), and adds its outcome and measures to
+  the recording.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..analysis.capture_score import OutcomeMonitor, ScoreGeometry, score
+from ..analysis.tow_score import TowMonitor
+from ..model.debris import COM, OMEGA, QUAT, body_origin
+from ..model.thrust import ThrustProfile, axial_mode
+from .observers import Observer, Run
+
+
+class ThrustControl(Observer):
+    """Starts and applies the chaser's burn (module doc); ``capture`` judges the capture
+    for trigger ``captured`` (None for trigger ``time``)."""
+
+    def __init__(self, scenario, model, engine, capture: OutcomeMonitor | None):
+        self.rules = scenario.thrust
+        self.mode = axial_mode(scenario, model,
+                               0.0 if engine.debris is None else engine.debris.mass)
+        """The tether's axial mode the shaper is tuned to."""
+        direction = np.asarray(self.rules.direction, dtype=float)
+        self.direction = direction / np.linalg.norm(direction)
+        self.capture = capture
+        self.chaser = model.node_count - 1
+        """The chaser's node: the tether's far end, the model's last node."""
+        self.profile: ThrustProfile | None = None
+        """The burn, once started."""
+
+    def start(self, run: Run) -> None:
+        if self.rules.trigger == "time":
+            self._begin(self.rules.trigger_time)
+        run.engine.step_hooks.append(lambda: self._apply(run.engine))
+
+    def _begin(self, t: float) -> None:
+        self.profile = ThrustProfile(self.rules, t, self.mode.omega, self.mode.zeta)
+
+    def _apply(self, engine) -> None:
+        if self.profile is not None:
+            engine.external[self.chaser] = self.profile.mean(*engine.span) * self.direction
+
+    def frame(self, run: Run) -> bool:
+        if (self.profile is None and self.capture is not None
+                and self.capture.outcome == "captured"):
+            self._begin(self.capture.time + self.rules.trigger_delay)
+        return False
+
+    def finish(self, run: Run, status: str, attrs: dict) -> None:
+        m, p = self.mode, self.profile
+        attrs.update(
+            thrust_start_s=-1.0 if p is None else float(p.times[0]),
+            thrust_impulse_Ns=0.0 if p is None else p.impulse(run.state.time),
+            thrust_axial_frequency_rad_s=m.omega, thrust_damping_ratio=m.zeta,
+            thrust_towed_mass_kg=m.towed_mass, thrust_chaser_mass_kg=m.chaser_mass,
+            thrust_tether_stiffness_N_m=m.stiffness)
+
+
+class TowOutcome(Observer):
+    """Judges the tow from the start of ``thrust``'s burn (module doc)."""
+
+    def __init__(self, scenario, geometry: ScoreGeometry, thrust: ThrustControl):
+        self.monitor = TowMonitor(scenario.tow)
+        self.geometry = geometry
+        self.thrust = thrust
+
+    def frame(self, run: Run) -> bool:
+        p, state, engine = self.thrust.profile, run.state, run.engine
+        if p is None or state.time < p.times[0]:
+            return False
+        debris = state.debris
+        tension = engine.thread_loads(state)[0][-1]  # the chaser's segment, the last thread
+        enclosed = score(state.position, body_origin(debris, engine.debris), debris[QUAT],
+                         self.geometry).enclosed
+        self.monitor.update(state.time, float(tension),
+                            float(np.linalg.norm(state.position[-1] - debris[COM])),
+                            enclosed, float(np.linalg.norm(debris[OMEGA])))
+        return False
+
+    def finish(self, run: Run, status: str, attrs: dict) -> None:
+        self.monitor.finish(status == "completed")
+        attrs.update(self.monitor.attributes())

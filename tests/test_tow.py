@@ -1,0 +1,305 @@
+"""Orbital relative motion and the tow against closed forms: a free point mass under the
+Hill-Clohessy-Wiltshire (HCW) equations over one orbit, a radial tethered dumbbell's
+equilibrium tension, and the grid path against the pair list with an orbit."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import bulletnet as bn
+from bulletnet.engines import make_engine
+from bulletnet.model import scenario
+from bulletnet.model.net import NetModel, NodeKind
+from bulletnet.model.state import NetState
+from bulletnet.sim.observers import Run
+from bulletnet.sim.tow import ThrustControl
+from tests.conftest import small_scene
+from tests.test_grid import assert_identical, final_states
+
+
+def point_masses(mass, pairs=(), rest=(), stiffness=(), damping=()) -> NetModel:
+    """Free point masses joined by tension-only threads (no bending, no cables)."""
+    n, p = len(mass), len(pairs)
+    zeros = np.zeros(p)
+    return NetModel(
+        nodes_per_side=0, mass=np.asarray(mass, float), radius=np.full(n, 0.01),
+        kind=np.full(n, NodeKind.TETHER, dtype=np.int8),
+        pairs=np.asarray(pairs, np.int64).reshape(p, 2), rest_length=np.asarray(rest, float),
+        thread_radius=np.full(p, 1e-3), axial_stiffness=np.asarray(stiffness, float),
+        axial_damping=np.asarray(damping, float), transverse_stiffness=zeros,
+        transverse_damping=zeros, bending_stiffness=zeros, bending_damping=zeros,
+        inertia=np.full(n, 1e-6), rest_axis=np.zeros((p, 3)), fixed=np.zeros(n, bool),
+        load=np.zeros((n, 3)), bilateral=False)
+
+
+def scene(**keys) -> scenario.Scenario:
+    """A scene from ``section__key=value`` pairs."""
+    doc: dict = {}
+    for key, value in keys.items():
+        section, name = key.split("__")
+        doc.setdefault(section, {})[name] = value
+    return scenario.from_dict(doc, "<test>")
+
+
+def run_model(s: scenario.Scenario, model: NetModel, position, velocity, t_end: float,
+              frames: int = 10) -> NetState:
+    """``model`` from (position, velocity) [m, m/s] to ``t_end`` [s] on ``s``'s engine."""
+    state = NetState(0.0, np.array(position, float), np.array(velocity, float))
+    engine = make_engine(s, model)
+    for t in np.linspace(0.0, t_end, frames + 1)[1:]:
+        engine.advance(state, float(t))
+    engine.close()
+    return state
+
+
+N_FAST = 2.0 * math.pi / 4.0
+"""A mean motion whose orbit takes 4 s [rad/s]: the tests' orbits are short."""
+AXES = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+"""Rows: LVLH x, y, z in the scene's frame under the default mapping (radial +x,
+along-track +z, so cross-track is +x cross +z = -y)."""
+
+
+def clohessy_wiltshire(n, r0, v0, t):
+    """Reference: the Clohessy-Wiltshire solution of the HCW equations (Clohessy &
+    Wiltshire 1960; Vallado, Fundamentals of Astrodynamics, Sec. 6.8): LVLH position and
+    velocity at t from (r0, v0)."""
+    (x, y, z), (u, v, w) = r0, v0
+    s, c = math.sin(n * t), math.cos(n * t)
+    pos = [(4 - 3 * c) * x + s / n * u + 2 / n * (1 - c) * v,
+           6 * (s - n * t) * x + y - 2 / n * (1 - c) * u + (4 * s - 3 * n * t) / n * v,
+           c * z + s / n * w]
+    vel = [3 * n * s * x + c * u + 2 * s * v,
+           6 * n * (c - 1) * x - 2 * s * u + (4 * c - 3) * v,
+           -n * s * z + c * w]
+    return np.array(pos), np.array(vel)
+
+
+@pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
+def test_free_point_mass_follows_clohessy_wiltshire_over_one_orbit(integrator):
+    # Reference: the Clohessy-Wiltshire solution (above), one orbit of 4 s, through the
+    # default scene-to-LVLH mapping. Both integrators are first order, the HCW force explicit:
+    # the error halves with the step (measured order within 0.1 of 1) and is below 1e-3 of
+    # the motion's size at 1e-4 s.
+    r0, v0 = np.array([1.0, 0.5, -0.5]), np.array([0.2, -0.3, 0.4])
+    ref_r, ref_v = clohessy_wiltshire(N_FAST, r0, v0, 4.0)
+    errors = []
+    for dt in (2e-4, 1e-4):
+        s = scene(orbit__enabled=True, orbit__mean_motion=N_FAST,
+                  simulation__integrator=integrator, simulation__dt=dt, scene__duration=4.0)
+        state = run_model(s, point_masses([2.0]), [r0 @ AXES], [v0 @ AXES], 4.0)
+        errors.append(max(np.abs(state.position[0] @ AXES.T - ref_r).max(),
+                          np.abs(state.velocity[0] @ AXES.T - ref_v).max() / N_FAST))
+    scale = np.abs(ref_r).max()
+    assert errors[1] < 1e-3 * scale
+    assert math.log2(errors[0] / errors[1]) == pytest.approx(1.0, abs=0.1)
+
+
+def test_orbit_mean_motion_from_altitude():
+    # Reference: Kepler's third law, n = sqrt(mu / a^3): 400 km above the equatorial
+    # radius, a = 6778.1 km, a period of 92.56 min
+    s = scene(orbit__enabled=True, orbit__altitude=400e3)
+    assert 2 * math.pi / s.orbit.n / 60 == pytest.approx(92.56, abs=0.01)
+    assert scene(orbit__mean_motion=1e-3).orbit.n == 1e-3
+
+
+M1, M2, REST = 3.0, 1.0, 2.0
+"""The dumbbell's masses [kg] and its thread's rest length [m]."""
+MU = M1 * M2 / (M1 + M2)
+"""Its reduced mass [kg]."""
+
+
+def dumbbell(length, angle=0.0):
+    """Positions (2, 3) [m] of the dumbbell's masses ``length`` apart with their centre of
+    mass at the LVLH origin, in the orbit plane at ``angle`` [rad] from the local vertical
+    (scene x radial, z along-track)."""
+    e = np.array([math.cos(angle), 0.0, math.sin(angle)])
+    return np.outer(np.array([-M2, M1]) / (M1 + M2) * length, e)
+
+
+def dumbbell_in_orbit(integrator, k):
+    """(scene, model, stretched length [m]) of the dumbbell on a thread of stiffness ``k``
+    [N/m] in the 4 s orbit, for 8 s at 1e-4 s; the length is the equilibrium's, along the
+    local vertical, L0 / (1 - 3 n^2 mu / k)."""
+    model = point_masses([M1, M2], [(0, 1)], [REST], [k], [20.0])
+    s = scene(orbit__enabled=True, orbit__mean_motion=N_FAST, simulation__integrator=integrator,
+              simulation__dt=1e-4, scene__duration=8.0)
+    return s, model, REST / (1 - 3 * N_FAST**2 * MU / k)
+
+
+@pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
+def test_radial_dumbbell_holds_the_gravity_gradient_tension(integrator):
+    # Reference: a dumbbell of masses m1, m2 on a thread along the local vertical, at rest
+    # in LVLH, is in equilibrium when the thread holds the gravity gradient's pull,
+    # T = 3 n^2 mu L (mu = m1 m2 / (m1 + m2) the reduced mass, L the stretched length
+    # L0 / (1 - 3 n^2 mu / k); Beletsky & Levin, Dynamics of Space Tether Systems, 1993).
+    # Placed there at rest it stays for two orbits: any error in the HCW force would set
+    # the thread oscillating.
+    s, model, length = dumbbell_in_orbit(integrator, 200.0)
+    state = run_model(s, model, dumbbell(length), np.zeros((2, 3)), 8.0)
+    tension = make_engine(s, model).thread_loads(state)[0][0]
+    assert tension == pytest.approx(3 * N_FAST**2 * MU * length, rel=1e-9)
+    np.testing.assert_allclose(state.position, dumbbell(length), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
+def test_radial_dumbbell_librates_in_plane_at_root_three_n(integrator):
+    # Reference: the in-plane libration of a rigid dumbbell about the local vertical, small
+    # angles: theta'' = -3 n^2 theta, frequency sqrt(3) n (Beletsky & Levin 1993). A stiff
+    # thread (axial mode 40x faster) tilted 0.05 rad, released at rest in LVLH; the period
+    # from the angle's zero crossings over two orbits, within 0.5 %.
+    s, model, length = dumbbell_in_orbit(integrator, 2e4)
+    state = NetState(0.0, dumbbell(length, 0.05), np.zeros((2, 3)))
+    engine = make_engine(s, model)
+    times = np.linspace(0.0, 8.0, 801)
+    angle = [0.05]
+    for t in times[1:]:
+        engine.advance(state, float(t))
+        d = state.position[1] - state.position[0]
+        angle.append(math.atan2(d[2], d[0]))
+    angle = np.array(angle)
+    k_ = np.nonzero(np.sign(angle[1:]) != np.sign(angle[:-1]))[0]
+    crossings = times[k_] - angle[k_] * (times[k_ + 1] - times[k_]) / (angle[k_ + 1] - angle[k_])
+    period = 2.0 * np.diff(crossings).mean()
+    assert len(crossings) >= 5
+    assert period == pytest.approx(2 * math.pi / (math.sqrt(3) * N_FAST), rel=5e-3)
+
+
+@pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
+def test_grid_equals_pairs_in_orbit(integrator):
+    # Reference: the pair-list path (tests/test_grid.py); the HCW forces are the same kernel
+    # on both paths, added after every other element's: bit for bit.
+    dt = 1e-6 if integrator == "symplectic_euler" else 3e-5
+    pairs, on_grid = final_states(lambda kernels: small_scene(**{
+        "net.nodes_per_side": 5, "simulation.kernels": kernels, "scene.duration": 0.2,
+        "simulation.integrator": integrator, "simulation.dt": dt, "orbit.enabled": True,
+        "orbit.mean_motion": 2.0, "orbit.origin": [0.0, 0.0, -3.0]}))
+    assert_identical(pairs, on_grid)
+
+
+def test_orbit_refuses_axes_that_are_not_orthogonal():
+    with pytest.raises(bn.ScenarioError, match="orbit.along_track: expected a direction "
+                                               "orthogonal"):
+        scene(orbit__enabled=True, orbit__along_track=[1.0, 0.0, 1.0])
+
+
+def thrust_run(profile, integrator="symplectic_euler", t_end=2.0, frames=2000, burn=0.0,
+               force=10.0, orbit=False):
+    """A chaser of 1 kg on a taut elastic tether (k = 100 N/m, undamped) to a point mass of
+    3 kg, at rest, thrusting ``force`` [N] away from it from t = 0 with ``profile``: the
+    times [s] (T,), the tether tensions [N] (T,), the final state, the burn and the mode."""
+    m_d, m_c, length = 3.0, 1.0, 2.0
+    area = 100.0 * length / 1e9  # E A / L = 100 N/m with E = 1 GPa
+    s = scene(tether__enabled=True, tether__length=length, tether__young_modulus=1e9,
+              tether__diameter=2 * math.sqrt(area / math.pi), tether__damping_ratio=0.0,
+              tether__chaser_mass=m_c, thrust__enabled=True, thrust__force=force,
+              thrust__direction=[1.0, 0.0, 0.0], thrust__profile=profile,
+              thrust__rise_time=0.3, thrust__burn_time=burn, thrust__trigger="time",
+              simulation__integrator=integrator, simulation__dt=1e-4, scene__duration=t_end,
+              orbit__enabled=orbit, orbit__mean_motion=N_FAST)
+    model = point_masses([m_d, m_c], [(0, 1)], [length], [100.0], [0.0])
+    engine = make_engine(s, model)
+    state = NetState(0.0, np.array([[0.0, 0, 0], [length, 0, 0]]), np.zeros((2, 3)))
+    control = ThrustControl(s, model, engine, None)
+    control.start(Run(s, model, engine, state))
+    times = np.linspace(0.0, t_end, frames + 1)
+    tension = [0.0]
+    for t in times[1:]:
+        engine.advance(state, float(t))
+        tension.append(engine.thread_loads(state)[0][0])
+    return times, np.array(tension), state, control
+
+
+@pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
+def test_step_thrust_on_a_tethered_pair(integrator):
+    # Reference: two masses on a spring, a step force F on one (m_c) away from the other
+    # (m_d), from rest at the spring's rest length: T(t) = F m_d / M (1 - cos w t),
+    # w = sqrt(k (1 / m_c + 1 / m_d)) (Jasper & Schaub's tug-tether-debris model, undamped):
+    # mean F m_d / M, peak twice that. Within 1 % (first order at w dt = 1.2e-3; implicit
+    # Euler's numerical damping takes 0.2 % of the first peak), over 2 s (3.7 periods).
+    times, tension, _, control = thrust_run("step", integrator)
+    mean = 10.0 * 3.0 / 4.0
+    omega = math.sqrt(100.0 * (1 / 1.0 + 1 / 3.0))
+    assert control.mode.omega == pytest.approx(omega, rel=1e-12)
+    assert tension.max() == pytest.approx(2 * mean, rel=1e-2)
+    whole = times <= 2 * math.pi / omega * 3  # three whole periods
+    assert tension[whole].mean() == pytest.approx(mean, rel=1e-2)
+    up = np.nonzero((tension[:-1] < mean) & (tension[1:] >= mean))[0]
+    assert 2 * math.pi / np.diff(times[up]).mean() == pytest.approx(omega, rel=1e-2)
+
+
+@pytest.mark.parametrize("profile", ["zv", "zvd"])
+def test_shaped_step_cuts_the_overshoot(profile):
+    # Reference: the ZV and ZVD shapers (Singer & Seering 1990) tuned to the axial mode
+    # leave no residual vibration: after the shaper's last impulse the tension stays within
+    # 5 % of the mean F m_d / M (a step overshoots by 100 %, above). The profile's mean over
+    # each 4.2 ms hook interval smears the impulses by w dt_hook / 2 = 2.4 % of a radian.
+    times, tension, _, control = thrust_run(profile)
+    mean = 10.0 * 3.0 / 4.0
+    assert tension.max() <= 1.05 * mean
+    after = times > control.profile.times[-1] + 0.01
+    assert np.abs(tension[after] - mean).max() <= 0.05 * mean
+
+
+@pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
+@pytest.mark.parametrize("orbit", [False, True])
+def test_thrust_momentum_is_the_thrust_impulse(integrator, orbit):
+    # Reference: Newton's second law for the whole system: the thread's forces are internal,
+    # so without an orbit the momentum changes by the thrust's impulse, F times the
+    # profile's integral (a burn_time of 0.5 s whose rise and fall ramp over 0.3 s each:
+    # F times 0.5 s), to round-off. (With an orbit the HCW forces also act: the check is
+    # then that it differs.)
+    *_, state, control = thrust_run("ramp", integrator, t_end=1.5, frames=30, burn=0.5,
+                                    orbit=orbit)
+    momentum = (np.array([3.0, 1.0])[:, None] * state.velocity).sum(axis=0)
+    impulse = control.profile.impulse(1.5)
+    assert impulse == pytest.approx(10.0 * 0.5, rel=1e-12)
+    if orbit:
+        assert abs(momentum[0] - impulse) > 1e-3
+    else:
+        np.testing.assert_allclose(momentum, [impulse, 0.0, 0.0], rtol=1e-12, atol=1e-12)
+
+
+def test_a_run_records_the_burn_and_the_tow(tmp_path):
+    # The observers' wiring on a small capture in orbit: the burn starts at its trigger time,
+    # its recorded impulse is the profile's, the tow is judged from the burn's first frame
+    # (the debris is not yet in the net there: slipped), and `metrics` reports it all.
+    from bulletnet.analysis.metrics import summary
+    from tests.conftest import small_capture
+
+    s = small_capture(**{
+        "scene.duration": 0.5, "tether.enabled": True, "tether.length": 3.0,
+        "tether.segments": 3, "tether.chaser_distance": 3.0, "tether.chaser_mass": 10.0,
+        "thrust.enabled": True, "thrust.trigger": "time", "thrust.trigger_time": 0.2,
+        "thrust.profile": "zv", "thrust.force": 5.0, "tow.enabled": True,
+        "tow.safe_distance": 1.0, "orbit.enabled": True})
+    result = bn.run(s, tmp_path / "tow.h5")
+    attrs = bn.open_recording(result.path).attrs
+    assert attrs["thrust_start_s"] == 0.2
+    assert attrs["thrust_impulse_Ns"] > 0.0
+    assert attrs["tow_outcome"] == "slipped" and attrs["tow_outcome_time_s"] == 0.2
+    assert attrs["tow_start_s"] == 0.2 and attrs["tow_least_distance_m"] > 0.0
+    tow = summary(bn.open_recording(result.path))["tow"]
+    assert tow["tow_outcome"] == "slipped" and tow["thrust_axial_frequency_rad_s"] > 0.0
+
+
+def test_removal_scene_runs_in_orbit_with_its_shaped_burn(tmp_path):
+    # scenarios/removal.toml: its axial mode is docs/tow.md's (k = E A / L of the 50 m,
+    # 2 mm tether, w = sqrt(k (1 / m_c + 1 / m_d)) with the CSM and the net towed), and a
+    # second of it, the burn started at once, runs in orbit and delivers the profile's
+    # impulse (the ZVD shaper's first step, a quarter of 200 N, for 1 s).
+    from bulletnet.model.builder import scene_debris
+    from bulletnet.model.thrust import axial_mode
+
+    s = bn.load_scenario("removal")
+    mode = axial_mode(s, bn.build_model(s), scene_debris(s).mass)
+    assert mode.stiffness == pytest.approx(70e9 * math.pi * 1e-6 / 50.0, rel=1e-12)
+    assert mode.omega == pytest.approx(2.1835, abs=1e-4)
+    short = s.with_overrides({"scene.duration": 1.0, "thrust.trigger": "time"})
+    result = bn.run(short, tmp_path / "removal.h5")
+    attrs = bn.open_recording(result.path).attrs
+    assert result.status == "completed" and attrs["thrust_start_s"] == 0.0
+    k = math.exp(-mode.zeta * math.pi / math.sqrt(1 - mode.zeta**2))
+    assert attrs["thrust_impulse_Ns"] == pytest.approx(200.0 / (1 + k) ** 2, rel=1e-12)
