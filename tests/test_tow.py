@@ -32,7 +32,7 @@ def point_masses(mass, pairs=(), rest=(), stiffness=(), damping=()) -> NetModel:
         axial_damping=np.asarray(damping, float), transverse_stiffness=zeros,
         transverse_damping=zeros, bending_stiffness=zeros, bending_damping=zeros,
         inertia=np.full(n, 1e-6), rest_axis=np.zeros((p, 3)), fixed=np.zeros(n, bool),
-        load=np.zeros((n, 3)), bilateral=False)
+        load=np.zeros((n, 3)), breaking_tension=np.full(p, np.inf), bilateral=False)
 
 
 def scene(**keys) -> scenario.Scenario:
