@@ -156,6 +156,15 @@ def dask_client(scheduler: str | None, workers: int):
             # stop: the caller says it was interrupted, in one line
             logging.getLogger("distributed").setLevel(logging.CRITICAL)
             raise
+        client.run(_closing_worker)
+
+
+def _closing_worker() -> None:
+    """Once the work is done: closing a local cluster stops its scheduler and workers in an
+    order in which a worker's heartbeat can find the scheduler gone, which Dask logs as an
+    error with a traceback; with nothing left to run it is none, so the worker says
+    nothing more."""
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
 
 
 def _quiet_worker() -> None:
