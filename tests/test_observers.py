@@ -46,6 +46,8 @@ def test_an_observer_sees_every_frame_once_between_start_and_finish(tmp_path):
     rec = bn.open_recording(tmp_path / "r.h5")
     np.testing.assert_array_equal(rec.time, times)
     assert rec.attrs["frames_seen"] == len(times) == result.frames
+    # the run's own attributes are there beside it: the engine's counters (recordings.md)
+    assert rec.attrs["stats_steps"] == result.stats["steps"] > 0
 
 
 def test_an_observer_stops_the_run_at_its_frame(tmp_path):

@@ -216,7 +216,8 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         if status == "running":  # an unexpected error: keep the frames, say so
             status, message = "interrupted", "stopped by an internal error"
         stats = engine.stats()
-        attrs = {"message": message, "wall_time_s": wall}
+        attrs = {"message": message, "wall_time_s": wall,
+                 **{f"stats_{k}": v for k, v in stats.items()}}
         with _signals_deferred():  # a second Ctrl-C must not leave the recording half written
             for observer in sorted(observers, key=lambda o: o.finish_order):
                 observer.finish(view, status, attrs)

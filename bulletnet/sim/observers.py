@@ -84,11 +84,12 @@ class Recording(Observer):
         return False
 
     def finish(self, run: Run, status: str, attrs: dict) -> None:
+        contact = {}
         if run.scenario.contact.enabled:
             first = run.engine.contact_loads()["first_contact"]
-            attrs = {"first_contact_s": first[0], "first_self_contact_s": first[1]} | attrs
-        message = attrs.pop("message", "")
-        self.path = self.recorder.close(status, message, **attrs)
+            contact = {"first_contact_s": first[0], "first_self_contact_s": first[1]}
+        rest = {k: v for k, v in attrs.items() if k != "message"}
+        self.path = self.recorder.close(status, attrs.get("message", ""), **contact, **rest)
 
 
 class Outcome(Observer):
