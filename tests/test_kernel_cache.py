@@ -115,3 +115,27 @@ def test_bulletnet_run_reports_a_compilation(tmp_path, monkeypatch, capsys):
     notice = "compiling the kernels (fast engine, symplectic euler), once after an install"
     assert captured.err.count(notice) == 1 and "bulletnet: compiled in" in captured.err
     assert "s compiling kernels)" in captured.out
+
+
+_CLOSURE_KEYS = """
+import hashlib
+from numba.core.serialize import dumps
+from bulletnet.solver import grid, integrators
+loops = [integrators.advance(g, i) for g in (False, True) for i in (False, True)]
+loops += [grid.free_steps(i) for i in (False, True)]
+for loop in loops:
+    cells = tuple(c.cell_contents for c in loop.py_func.__closure__ or ())
+    print(loop.py_func.__qualname__, hashlib.sha256(dumps(cells)).hexdigest())
+"""
+
+
+def test_compiled_loops_have_the_same_cache_key_in_every_process():
+    # Reference: numba's cache index (numba.core.caching.Cache._index_key) hashes a closure's
+    # captured values as pickled; a captured dispatcher pickles differently in every process,
+    # so a loop capturing one would compile anew in every run. Two processes, the same keys.
+    import subprocess
+    import sys
+
+    keys = [subprocess.run([sys.executable, "-c", _CLOSURE_KEYS], capture_output=True,
+                           text=True, check=True).stdout for _ in range(2)]
+    assert keys[0].count("\n") == 6 and keys[0] == keys[1]

@@ -394,26 +394,32 @@ def bending_weight(bending, every, work):
     return float(every) if work.step_count[0] % every == 0 else 0.0
 
 
-@functools.cache
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def symplectic_step(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol):
+    """All forces at the state (bending with ``weight``), then symplectic Euler's velocity
+    increment into work's dv; counts the step (``tol`` unused: the signature of
+    :func:`implicit_step`)."""
+    external_forces(pos, vel, quat, omega, model, work, gravity, external, weight, False)
+    symplectic_increment(pos, vel, model, work, dt)
+    work.step_count[0] += 1
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def implicit_step(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol):
+    """All forces at the state (bending with ``weight``), then implicit Euler's velocity
+    increment (CG to the relative residual ``tol``) into work's dv; counts the step."""
+    external_forces(pos, vel, quat, omega, model, work, gravity, external, weight, True)
+    implicit_increment(pos, vel, model, work, dt, tol)
+    work.step_count[0] += 1
+
+
 def increment(implicit: bool):
     """The compiled kernel ``(weight, pos, vel, quat, omega, model, work, gravity, external,
-    dt, tol)``: all forces at the state (bending with ``weight``), then the velocity increment
-    of implicit Euler (``implicit``: CG to the relative residual ``tol``) or of symplectic
-    Euler into work's dv; counts the step. (``implicit`` is a constant of the kernel: each
-    integrator compiles only its own increment.)"""
-
-    @nb.njit(cache=True, error_model="numpy", inline="always")
-    def increment_kernel(weight, pos, vel, quat, omega, model, work, gravity, external, dt,
-                         tol):
-        external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
-                        implicit)
-        if implicit:
-            implicit_increment(pos, vel, model, work, dt, tol)
-        else:
-            symplectic_increment(pos, vel, model, work, dt)
-        work.step_count[0] += 1
-
-    return increment_kernel
+    dt, tol)`` of one integrator: :func:`implicit_step` or :func:`symplectic_step` (each
+    compiles only its own increment). Module-level functions, not closures: numba keys a
+    closure's cache on its captured values, and a captured dispatcher pickles differently in
+    every process, so a loop capturing one would compile anew in every run."""
+    return implicit_step if implicit else symplectic_step
 
 
 @functools.cache
@@ -442,7 +448,6 @@ def advance(on_grid: bool, implicit: bool):
     (a net without bending compiles no bending kernel, a deployment no contact stage); a
     free net on the grid (no bending, contact or cables) takes
     :func:`bulletnet.solver.grid.free_steps` and compiles none of this loop."""
-    step = increment(implicit)
     hold = 1.0 if implicit else 0.0  # bending held over the interval, or an impulse
     method = IMPLICIT_EULER if implicit else SYMPLECTIC_EULER
 
@@ -474,8 +479,13 @@ def advance(on_grid: bool, implicit: bool):
                 else:
                     grid_kernels.symplectic_step(grid, views, dt, weight, contact is not None)
                 work.step_count[0] += 1
-            else:
-                step(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol)
+            else:  # the increment's kernel named, not captured (see increment)
+                if implicit:
+                    implicit_step(weight, pos, vel, quat, omega, model, work, gravity,
+                                  external, dt, tol)
+                else:
+                    symplectic_step(weight, pos, vel, quat, omega, model, work, gravity,
+                                    external, dt, tol)
                 for i in range(n):
                     for a in range(3):
                         vel[i, a] += dv[i, a]
