@@ -12,7 +12,9 @@ two paths give the same floating-point results, bit for bit.
 Everything that is not a grid thread (the corner threads, and any element added later) stays
 in the general pair-list kernels (:mod:`bulletnet.kernels.axial`), which read the same memory
 through (N, 3) views of the rows (:attr:`GridViews`). The contact stage and the bending
-springs read those views too.
+springs read those views too. The implicit step solves its system with the pair list's
+conjugate gradients (:func:`bulletnet.solver.pcg.solve`), given this module's product and
+block-Jacobi preconditioner on the rows.
 
 Layout: :class:`Grid` holds rows of length L >= N (N nodes, padded to a multiple of 8), all
 carved, with the threads' parameters, from one 64-byte aligned buffer (the placement of a
@@ -55,6 +57,7 @@ from ..kernels.cable import (
 from ..kernels.orbit import OrbitArrays, clear_orbit_nodes, orbit_forces
 from ..model.net import NetModel
 from ..model.topology import thread_pairs
+from . import pcg
 
 ALIGN = 64
 """Alignment of every row [bytes] (a cache line; a whole AVX-512 register)."""
@@ -181,17 +184,11 @@ class GridViews(NamedTuple):
     other: np.ndarray
     """Forces of the other threads [N], shape (N, 3)."""
     r: np.ndarray
-    """CG residual [kg m/s], shape (N, 3)."""
-    d: np.ndarray
-    """CG search direction [m/s], shape (N, 3)."""
-    ad: np.ndarray
-    """The system times d [kg m/s], shape (N, 3)."""
+    """CG residual (first the right-hand side) [kg m/s], shape (N, 3)."""
     quat: np.ndarray
     """Orientations [-], shape (N, 4)."""
     omega: np.ndarray
     """Angular velocities [rad/s], shape (N, 3)."""
-    block_inv: np.ndarray
-    """Inverse block-Jacobi preconditioner, row-major 3 x 3 [1/kg], shape (N, 9)."""
 
 
 def applies(model: NetModel) -> bool:
@@ -263,11 +260,12 @@ def build(model: NetModel, cables: CableArrays | None = None,
 
 def views(grid: Grid) -> GridViews:
     """(N, 3) views of the grid's rows (see :class:`GridViews`), made once: a view made in a
-    kernel costs an atomic reference count increment and decrement at every step."""
+    kernel compiled with numba's reference counting costs an atomic increment and decrement at
+    every step (the grid's own kernels, compiled without it, make theirs: :func:`_apply`,
+    :func:`_block_jacobi`)."""
     count = grid.count
     return GridViews(*(a[:, :count].T for a in (grid.x, grid.v, grid.dv, grid.bend,
-                                                grid.other, grid.cg[0], grid.cg[2],
-                                                grid.cg[3], grid.q, grid.w, grid.block_inv)))
+                                                grid.other, grid.cg[0], grid.q, grid.w)))
 
 
 def load(grid: Grid, state, base) -> None:
@@ -463,9 +461,10 @@ def _block_products(grid, rows, scale):
 
 
 @nb.njit(cache=True, error_model="numpy", _nrt=False)
-def _apply(grid, rows, out, rows_view, out_view):
-    """out = M rows + the threads' blocks applied to rows (the implicit system's product;
-    rows, out (3, L), and their (N, 3) views), in the pair-list kernels' order."""
+def _apply(grid, rows, out):
+    """out = M rows + the threads' blocks applied to rows (the implicit system's product
+    A x of :func:`bulletnet.solver.pcg.solve`; rows [m/s] and out [kg m/s] (3, L)), in the
+    pair-list kernels' order."""
     ns, n, count, mass = U(grid.ns), U(grid.n), U(grid.count), grid.mass
     wh, wv = grid.wh, grid.wv
     _block_products(grid, rows, 0.0)
@@ -474,6 +473,7 @@ def _apply(grid, rows, out, rows_view, out_view):
             out[a, i] = _neighbours(mass[i] * rows[a, i], wh, wv, a, i, ns, 1.0)
         for i in range(n, count):
             out[a, i] = mass[i] * rows[a, i]
+    rows_view, out_view = rows[:, :count].T, out[:, :count].T  # free: no reference counts
     add_thread_blocks(rows_view, grid.o_pairs, grid.o_along, grid.o_across, grid.o_axis,
                       out_view)
     add_cable_product(rows_view, grid.cables, out_view, 0.0, 1.0)
@@ -501,8 +501,9 @@ def _store(rows, i, m):
 
 
 @nb.njit(cache=True, error_model="numpy", _nrt=False)
-def _block_jacobi(grid, views):
-    """Each node's 3 x 3 diagonal block of the implicit system, inverted, into block_inv."""
+def _block_jacobi(grid):
+    """Each node's 3 x 3 diagonal block of the implicit system, inverted, into block_inv (the
+    preconditioner of :func:`bulletnet.solver.pcg.solve`)."""
     ns, n, count, mass, inv = U(grid.ns), U(grid.n), U(grid.count), grid.mass, grid.block_inv
     blocks, eh, ev = grid.blocks, grid.eh, grid.ev
     for i in range(n):  # v(i - Ns), h(i - 1), h(i), v(i): the pair-list order
@@ -525,53 +526,40 @@ def _block_jacobi(grid, views):
                           across[q], axis[q, 0], axis[q, 1], axis[q, 2])
             for a in range(9):
                 inv[a, node] = m[a]
-    add_cable_blocks(grid.cables, views.block_inv)
+    add_cable_blocks(grid.cables, inv[:, :count].T)
     for i in range(count):
         _store(inv, i, invert3((inv[0, i], inv[1, i], inv[2, i], inv[3, i], inv[4, i],
                                 inv[5, i], inv[6, i], inv[7, i], inv[8, i])))
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _dot(a, b, count):
-    """sum_i a_i . b_i over the first ``count`` columns of (3, L) rows, node by node (the
-    pair-list kernels' order)."""
-    s = 0.0
-    for i in range(count):
-        s += a[0, i] * b[0, i] + a[1, i] * b[1, i] + a[2, i] * b[2, i]
-    return s
-
-
-@nb.njit(cache=True, error_model="numpy", inline="always")
-def _dots(r, z, count):
-    """(:func:`_dot` of r and z, :func:`_dot` of r and r) in one pass: the same sums in the
-    same order, their two dependency chains interleaved."""
-    rz = rr = 0.0
-    for i in range(count):
-        r0, r1, r2 = r[0, i], r[1, i], r[2, i]
-        rz += r0 * z[0, i] + r1 * z[1, i] + r2 * z[2, i]
-        rr += r0 * r0 + r1 * r1 + r2 * r2
-    return rz, rr
-
-
-@nb.njit(cache=True, error_model="numpy", inline="always")
-def _precondition(inv, r, z, count):
-    """z = the inverse diagonal blocks times r, node by node."""
+def _precondition(grid, r, z):
+    """z [m/s] = the inverse diagonal blocks times r [kg m/s] ((3, L) rows), node by node."""
+    count, inv = U(grid.count), grid.block_inv
     for a in range(U(3)):
         for i in range(count):
             z[a, i] = inv[U(3) * a, i] * r[0, i] + inv[U(3) * a + ONE, i] * r[1, i] \
                 + inv[U(3) * a + U(2), i] * r[2, i]
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _components(rows):
+    """The rows (3, L) themselves: the grid's vectors are component rows already."""
+    return rows
+
+
 @nb.njit(cache=True, error_model="numpy", _nrt=False)
 def implicit_step(grid, views, dt, tol, iterations):
     """One linearly implicit Euler step (:func:`bulletnet.solver.integrators.implicit_increment`,
-    the same arithmetic in the same order) on the rows: dv by preconditioned CG from its
-    last value, v <- v + dv, x <- x + dt v. base and bend hold the non-axial forces [N];
-    ``iterations`` (1,) counts CG iterations."""
-    ns, n, count, mass = U(grid.ns), U(grid.n), U(grid.count), grid.mass
-    x, v, dv, inv, blocks = grid.x, grid.v, grid.dv, grid.block_inv, grid.blocks
+    the same arithmetic in the same order) on the rows: the right-hand side and the system's
+    blocks by stencil, dv by :func:`bulletnet.solver.pcg.solve` (its product
+    :func:`_apply`, preconditioner :func:`_block_jacobi`, :func:`_precondition`; its updates
+    run over whole rows, padding included) from its last value to the relative residual
+    ``tol`` [-], v <- v + dv, x <- x + dt v (``dt`` [s]). base and bend hold the non-axial
+    forces [N]; ``iterations`` (1,) int64 counts CG iterations."""
+    ns, n, count = U(grid.ns), U(grid.n), U(grid.count)
+    x, v, dv, blocks, r = grid.x, grid.v, grid.dv, grid.blocks, grid.cg[0]
     base, bend, other, th, tv = grid.base, grid.bend, grid.other, grid.th, grid.tv
-    r, z, d, ad = grid.cg[0], grid.cg[1], grid.cg[2], grid.cg[3]
     _linearize_stencil(x, v, ONE, grid.h_rest, grid.h_k, grid.h_c, th, grid.eh, blocks, U(0),
                        dt, n - ONE, ns)
     _linearize_stencil(x, v, ns, grid.v_rest, grid.v_k, grid.v_c, tv, grid.ev, blocks, U(2),
@@ -589,57 +577,8 @@ def implicit_step(grid, views, dt, tol, iterations):
     add_thread_rhs(views.velocity, grid.o_pairs, grid.o_k, grid.o_along, grid.o_across,
                    grid.o_axis, dt, views.r)
     add_cable_product(views.velocity, grid.cables, views.r, dt * dt, -1.0)
-    m0 = m1 = m2 = 0.0  # the step's exact momentum change (internal forces cancel)
-    for i in range(count):
-        m0 += r[0, i]
-    for i in range(count):
-        m1 += r[1, i]
-    for i in range(count):
-        m2 += r[2, i]
-    rhs_norm = np.sqrt(_dot(r, r, count))
-    if rhs_norm != 0.0:
-        _block_jacobi(grid, views)
-        _apply(grid, dv, ad, views.dv, views.ad)  # r <- rhs - A dv (warm start)
-        for a in range(U(3)):
-            for i in range(count):
-                r[a, i] -= ad[a, i]
-        _precondition(inv, r, z, count)
-        for a in range(U(3)):
-            for i in range(count):
-                d[a, i] = z[a, i]
-        rz, rr = _dots(r, z, count)
-        for _ in range(4 * grid.count):
-            if np.sqrt(rr) <= tol * rhs_norm:
-                break
-            _apply(grid, d, ad, views.d, views.ad)
-            alpha = rz / _dot(d, ad, count)
-            for a in range(U(3)):
-                for i in range(count):
-                    dv[a, i] += alpha * d[a, i]
-                    r[a, i] -= alpha * ad[a, i]
-            _precondition(inv, r, z, count)
-            rz_new, rr = _dots(r, z, count)
-            beta = rz_new / rz
-            rz = rz_new
-            for a in range(U(3)):
-                for i in range(count):
-                    d[a, i] = z[a, i] + beta * d[a, i]
-            iterations[0] += 1
-        # the momentum correction of the pair-list kernel (see there)
-        total_mass = 0.0
-        for i in range(count):
-            total_mass += mass[i]
-            m0 -= mass[i] * dv[0, i]
-            m1 -= mass[i] * dv[1, i]
-            m2 -= mass[i] * dv[2, i]
-        for i in range(count):
-            dv[0, i] += m0 / total_mass
-        for i in range(count):
-            dv[1, i] += m1 / total_mass
-        for i in range(count):
-            dv[2, i] += m2 / total_mass
-    else:
-        dv[:] = 0.0
+    pcg.solve(_apply, _block_jacobi, _precondition, _components, grid, dv, r, grid.cg[1],
+              grid.cg[2], grid.cg[3], grid.mass, grid.count, tol, iterations, True)
     _move(x, v, dv, dt, count)
 
 

@@ -11,12 +11,12 @@ same semi-implicit update), so both engines run the same method.
   dt < ~2 m / c for the thread dampers (a few microseconds for the paper's nets).
 - ``implicit_euler``: linearly implicit (one Newton step of) backward Euler on the axial
   threads, (M + dt C + dt^2 K) dv = dt F - dt^2 K v, solved by block-Jacobi preconditioned
-  conjugate gradients, then shifted by the uniform velocity that makes the step conserve
-  momentum exactly (the threads' blocks vanish on it). Bending forces enter F explicitly;
-  the node rotations take dw = h tau / (J + h C_g + h^2 K_g) with C_g, K_g the Gershgorin
-  bounds of their angular damping and stiffness (:func:`rotational_bounds`; h the bending
-  interval): a diagonally implicit step, stable at any step. First order, stable on the
-  damped threads.
+  conjugate gradients (:func:`bulletnet.solver.pcg.solve`, shared with the grid's stencils),
+  then shifted by the uniform velocity that makes the step conserve momentum exactly (the
+  threads' blocks vanish on it). Bending forces enter F explicitly; the node rotations take
+  dw = h tau / (J + h C_g + h^2 K_g) with C_g, K_g the Gershgorin bounds of their angular
+  damping and stiffness (:func:`rotational_bounds`; h the bending interval): a diagonally
+  implicit step, stable at any step. First order, stable on the damped threads.
 
 Clamped nodes (``model.fixed``) never move or turn.
 """
@@ -48,6 +48,7 @@ from ..kernels.cable import (
 from ..kernels.orbit import OrbitArrays, orbit_forces
 from ..model.net import NetModel
 from . import grid as grid_kernels
+from . import pcg
 from .contact_stage import contact_stage, ensure_pairs
 
 SYMPLECTIC_EULER = 0
@@ -180,6 +181,29 @@ def workspace(n: int, p: int) -> Workspace:
         step_count=np.zeros(1, dtype=np.int64), gain=np.zeros(n))
 
 
+class PairSystem(NamedTuple):
+    """The implicit-Euler system on the pair list, as the operations of
+    :func:`bulletnet.solver.pcg.solve` read it: only the arrays they use (each compiled call
+    with reference counting increments and decrements every array it is passed)."""
+
+    mass: np.ndarray
+    """Node masses [kg], shape (N,)."""
+    fixed: np.ndarray
+    """Clamped nodes [-], shape (N,), bool."""
+    pairs: np.ndarray
+    """Thread end nodes (i, j) [-], shape (P, 2), int64."""
+    along: np.ndarray
+    """Implicit block along each thread [kg], shape (P,)."""
+    across: np.ndarray
+    """Implicit block across each thread [kg], shape (P,)."""
+    axis: np.ndarray
+    """Thread unit directions [-], shape (P, 3)."""
+    block_inv: np.ndarray
+    """Inverse block-Jacobi preconditioner [1/kg], shape (N, 3, 3)."""
+    cables: CableArrays | None
+    """The closing cables (their blocks and vertices' shares); None without."""
+
+
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def evaluate_bending(pos, vel, quat, omega, model, work):
     """The bending springs afresh: forces [N] into work's bend, torques [N m] into its
@@ -213,25 +237,31 @@ def external_forces(pos, vel, quat, omega, model, work, gravity, external, bendi
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _apply_blocks(x, pairs, along, across, axis, mass, fixed, cables, out):
-    """out = M x + sum_p B_p-Laplacian x + the cables' blocks x, the implicit-Euler system
-    applied to x (rows of clamped nodes are the identity)."""
+def _apply_blocks(system, x, out):
+    """out [kg m/s] = M x + sum_p B_p-Laplacian x + the cables' blocks x, the implicit-Euler
+    system (:class:`PairSystem`) applied to x [m/s] (the product A x of
+    :func:`bulletnet.solver.pcg.solve`; rows of clamped nodes are the identity); x and out
+    (N, 3)."""
+    mass, fixed = system.mass, system.fixed
     for i in range(x.shape[0]):
         for a in range(3):
             out[i, a] = mass[i] * x[i, a]
-    add_thread_blocks(x, pairs, along, across, axis, out)
-    add_cable_product(x, cables, out, 0.0, 1.0)
+    add_thread_blocks(x, system.pairs, system.along, system.across, system.axis, out)
+    add_cable_product(x, system.cables, out, 0.0, 1.0)
     for i in range(x.shape[0]):
         if fixed[i]:
             out[i, 0], out[i, 1], out[i, 2] = x[i, 0], x[i, 1], x[i, 2]
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _block_jacobi(pairs, along, across, axis, mass, cables, inv):
-    """Invert each node's 3x3 diagonal block of the implicit system (the cables' vertices'
-    shares included) into ``inv``."""
+def _block_jacobi(system):
+    """Invert each node's 3x3 diagonal block of the implicit system (:class:`PairSystem`; the
+    cables' vertices' shares included) into its block_inv (the preconditioner of
+    :func:`bulletnet.solver.pcg.solve`)."""
+    mass, pairs, along, across, axis = (system.mass, system.pairs, system.along, system.across,
+                                        system.axis)
     n = mass.shape[0]
-    flat = inv.reshape((n, 9))
+    flat = system.block_inv.reshape((n, 9))
     for i in range(n):
         for a in range(9):
             flat[i, a] = mass[i] if a % 4 == 0 else 0.0
@@ -245,7 +275,7 @@ def _block_jacobi(pairs, along, across, axis, mass, cables, inv):
                           axis[p, 2])
             for a in range(9):
                 flat[node, a] = m[a]
-    add_cable_blocks(cables, flat)
+    add_cable_blocks(system.cables, flat)
     for i in range(n):
         m = invert3((flat[i, 0], flat[i, 1], flat[i, 2], flat[i, 3], flat[i, 4], flat[i, 5],
                      flat[i, 6], flat[i, 7], flat[i, 8]))
@@ -254,15 +284,10 @@ def _block_jacobi(pairs, along, across, axis, mass, cables, inv):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _dot(a, b):
-    s = 0.0
-    for i in range(a.shape[0]):
-        s += a[i, 0] * b[i, 0] + a[i, 1] * b[i, 1] + a[i, 2] * b[i, 2]
-    return s
-
-
-@nb.njit(cache=True, error_model="numpy")
-def _precondition(inv, fixed, r, z):
+def _precondition(system, r, z):
+    """z [m/s] = the inverse diagonal blocks of :class:`PairSystem` times r [kg m/s], node by
+    node, zero on clamped nodes; r and z (N, 3)."""
+    inv, fixed = system.block_inv, system.fixed
     for i in range(r.shape[0]):
         if fixed[i]:
             z[i, 0], z[i, 1], z[i, 2] = 0.0, 0.0, 0.0
@@ -271,23 +296,31 @@ def _precondition(inv, fixed, r, z):
             z[i, a] = inv[i, a, 0] * r[i, 0] + inv[i, a, 1] * r[i, 1] + inv[i, a, 2] * r[i, 2]
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _components(x):
+    """x (N, 3) as component rows (3, N) (its transpose)."""
+    return x.T
+
+
 @nb.njit(cache=True, error_model="numpy")
 def implicit_increment(pos, vel, model, work, dt, tol):
     """Velocity increment dv [m/s] of one linearly implicit Euler step (see module doc), into
-    work's dv (which holds the previous increment on entry: the CG warm start). Work's force
-    must hold the non-axial forces on entry (:func:`external_forces`)."""
-    mass, pairs, rest, k_a, c_a = model.mass, model.pairs, model.rest, model.k_a, model.c_a
-    fixed, bilateral = model.fixed, model.bilateral
-    force, tension, along, across, axis = (work.force, work.tension, work.along, work.across,
-                                           work.axis)
-    dv, cg, block_inv, iterations = work.dv, work.cg, work.block_inv, work.cg_iterations
+    work's dv (which holds the previous increment on entry: the CG warm start): the threads'
+    linearization and the right-hand side on the pair list, then
+    :func:`bulletnet.solver.pcg.solve` with the product :func:`_apply_blocks`, the
+    preconditioner :func:`_block_jacobi`, :func:`_precondition`, to the relative residual
+    ``tol`` [-] (``dt`` [s]; pos [m] and vel [m/s] (N, 3)). Work's force must hold the
+    non-axial forces on entry (:func:`external_forces`)."""
+    pairs, k_a, fixed = model.pairs, model.k_a, model.fixed
+    force, along, across, axis = work.force, work.along, work.across, work.axis
+    dv, cg = work.dv, work.cg
     n = pos.shape[0]
     cables = model.cables
-    axial_linearization(pos, vel, pairs, rest, k_a, c_a, bilateral, dt, force, tension, along,
-                        across, axis)
+    axial_linearization(pos, vel, pairs, model.rest, k_a, model.c_a, model.bilateral, dt,
+                        force, work.tension, along, across, axis)
     cable_forces(pos, vel, cables, force, True, dt)
-    orbit_forces(pos, vel, mass, model.orbit, force)  # explicit, Coriolis term included
-    r, z, d, ad = cg[0], cg[1], cg[2], cg[3]
+    orbit_forces(pos, vel, model.mass, model.orbit, force)  # explicit, Coriolis included
+    r = cg[0]
     # right-hand side dt F - dt^2 K v, in r
     for i in range(n):
         for a in range(3):
@@ -300,61 +333,9 @@ def implicit_increment(pos, vel, model, work, dt, tol):
             clamped = True
             r[i, 0], r[i, 1], r[i, 2] = 0.0, 0.0, 0.0
             dv[i, 0], dv[i, 1], dv[i, 2] = 0.0, 0.0, 0.0
-    momentum = np.zeros(3)  # the step's exact momentum change: sum of dt F (internal forces cancel)
-    for i in range(n):
-        for a in range(3):
-            momentum[a] += r[i, a]
-    rhs_norm = np.sqrt(_dot(r, r))
-    if rhs_norm == 0.0:
-        dv[:] = 0.0
-        return
-    _block_jacobi(pairs, along, across, axis, mass, cables, block_inv)
-    # r <- rhs - A dv (warm start)
-    _apply_blocks(dv, pairs, along, across, axis, mass, fixed, cables, ad)
-    for i in range(n):
-        for a in range(3):
-            r[i, a] -= ad[i, a]
-    _precondition(block_inv, fixed, r, z)
-    d[:] = z
-    rz = _dot(r, z)
-    rr = _dot(r, r)
-    for _ in range(4 * n):
-        if np.sqrt(rr) <= tol * rhs_norm:
-            break
-        _apply_blocks(d, pairs, along, across, axis, mass, fixed, cables, ad)
-        alpha = rz / _dot(d, ad)
-        rz_new = rr = 0.0
-        for i in range(n):  # one pass: update, precondition (block Jacobi), dot products
-            for a in range(3):
-                dv[i, a] += alpha * d[i, a]
-                r[i, a] -= alpha * ad[i, a]
-            r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
-            if fixed[i]:
-                z[i, 0], z[i, 1], z[i, 2] = 0.0, 0.0, 0.0
-            else:
-                for a in range(3):
-                    z[i, a] = block_inv[i, a, 0] * r0 + block_inv[i, a, 1] * r1 \
-                        + block_inv[i, a, 2] * r2
-            rz_new += r0 * z[i, 0] + r1 * z[i, 1] + r2 * z[i, 2]
-            rr += r0 * r0 + r1 * r1 + r2 * r2
-        beta = rz_new / rz
-        rz = rz_new
-        for i in range(n):
-            for a in range(3):
-                d[i, a] = z[i, a] + beta * d[i, a]
-        iterations[0] += 1
-    if clamped:  # a clamp takes up momentum: nothing to conserve
-        return
-    # The threads' blocks vanish on a uniform velocity, so adding one to dv changes only the
-    # momentum residual: choose it so the step conserves momentum exactly, not to CG tolerance.
-    total_mass = 0.0
-    for i in range(n):
-        total_mass += mass[i]
-        for a in range(3):
-            momentum[a] -= mass[i] * dv[i, a]
-    for i in range(n):
-        for a in range(3):
-            dv[i, a] += momentum[a] / total_mass
+    system = PairSystem(model.mass, fixed, pairs, along, across, axis, work.block_inv, cables)
+    pcg.solve(_apply_blocks, _block_jacobi, _precondition, _components, system, dv, r, cg[1],
+              cg[2], cg[3], model.mass, n, tol, work.cg_iterations, not clamped)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
