@@ -127,11 +127,12 @@ class RigidDebris:
 
 def orbit_load(orbit: OrbitArrays, debris: Debris, state: np.ndarray) -> np.ndarray:
     """The reference orbit's HCW force [N] on ``debris`` in ``state`` (at its centre of mass)
-    and its gravity-gradient torque [N m] (:func:`~bulletnet.kernels.orbit.debris_load`;
-    its inertia turned into the scene's frame), shape (6,)."""
+    and its gravity-gradient and rotating frame's torque [N m]
+    (:func:`~bulletnet.kernels.orbit.debris_load`; its inertia turned into the scene's
+    frame), shape (6,)."""
     rot = rotation_matrix(state[QUAT])
     return debris_load(orbit, debris.mass, rot @ debris.inertia @ rot.T, state[COM],
-                       state[VELOCITY])
+                       state[VELOCITY], state[OMEGA])
 
 
 def read_state(client, body: int, state: np.ndarray, debris: Debris) -> None:

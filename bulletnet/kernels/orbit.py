@@ -17,7 +17,9 @@ accelerations in scene coordinates,
     a = (3 n^2 (r . e_x) + 2 n (v . e_y)) e_x - 2 n (v . e_x) e_y - n^2 (r . e_z) e_z,
 
 r the position from that point. A rigid body's gravity-gradient torque about its centre of
-mass is 3 n^2 e_x x (I e_x) (I its inertia tensor in the scene's frame): :func:`debris_load`.
+mass is 3 n^2 e_x x (I e_x) (I its inertia tensor in the scene's frame); :func:`debris_load`
+adds the rotating frame's torque, so that its attitude and angular velocity, like its
+position and velocity, are relative to the LVLH frame.
 
 A scene without an orbit passes None: each kernel's body is pruned by numba on the argument's
 type, so it compiles none of this and its steps call nothing.
@@ -110,12 +112,27 @@ def clear_orbit_nodes(orbit, force):
 
 
 def debris_load(orbit: OrbitArrays, mass: float, inertia: np.ndarray, com: np.ndarray,
-                velocity: np.ndarray) -> np.ndarray:
-    """The HCW force [N] on a rigid body of ``mass`` [kg] whose centre of mass is at ``com``
-    [m] moving at ``velocity`` [m/s], and its gravity-gradient torque 3 n^2 e_x x (I e_x)
-    [N m] about the centre of mass (``inertia`` [kg m^2] (3, 3) in the scene's frame), as
-    shape (6,)."""
+                velocity: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """The load on a rigid body of ``mass`` [kg] in the LVLH frame, as shape (6,): the HCW
+    force [N] at its centre of mass ``com`` [m], moving at ``velocity`` [m/s], and the torque
+    [N m] about its centre of mass that turns a rigid body integrated in the scene's frame as
+    if it were inertial (PyBullet's, I w' = T - w x I w) as a body turns relative to the
+    rotating LVLH frame: with w its angular velocity relative to the frame (``omega``
+    [rad/s]), W = n e_z the frame's and I its inertia tensor in the scene's frame (``inertia``
+    [kg m^2] (3, 3)), Euler's equations of the inertial rate w + W read in the rotating frame
+    (docs/tow.md derives it),
+
+        I w' = T_gg - (w + W) x I (w + W) + I (w x W),
+
+    T_gg = 3 n^2 e_x x (I e_x) the gravity-gradient torque; so the torque applied is
+    T_gg - (w + W) x I (w + W) + I (w x W) + w x I w. (A body at rest in the frame turns at
+    n in inertial space, as a body in a circular orbit keeping its face to the Earth; a
+    body at rest in inertial space turns at -n about e_z in the frame.)"""
     a = hcw_acceleration(orbit, *com, *velocity)
     e = orbit.radial
-    torque = 3.0 * orbit.n ** 2 * np.cross(e, inertia @ e)
+    w = np.asarray(omega, dtype=float)
+    inertial = w + orbit.n * orbit.cross
+    torque = (3.0 * orbit.n ** 2 * np.cross(e, inertia @ e)
+              - np.cross(inertial, inertia @ inertial)
+              + inertia @ np.cross(w, orbit.n * orbit.cross) + np.cross(w, inertia @ w))
     return np.concatenate([mass * np.asarray(a), torque])
