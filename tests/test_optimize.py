@@ -6,13 +6,19 @@ from __future__ import annotations
 
 import json
 import os
+import tomllib
 from pathlib import Path
 
 import pytest
 from test_recording_cli import cli
 
 from bulletnet.common.errors import ScenarioError
-from bulletnet.studies.optimize import assess, load_optimisation, run_optimisation
+from bulletnet.studies.optimize import (
+    assess,
+    design_quantities,
+    load_optimisation,
+    run_optimisation,
+)
 from bulletnet.studies.optimize_report import front
 from bulletnet.studies.report import wilson
 from bulletnet.studies.study import draw, read_table
@@ -221,3 +227,24 @@ def test_scene_optimisation_end_to_end(tmp_path):
     assert "confirmation on 2 fresh draws" in proc.stdout
     for name in ("front", "history", "importance"):
         assert (out / "figures" / f"{name}.png").stat().st_size > 0
+
+
+def test_the_capture_optimisation_file_loads(tmp_path):
+    # reference: scenarios/optimize_capture.toml and docs/studies.md's example variables
+    # (integer, log-scale and choice); the K draws are the envelope study's [vary] keys, the
+    # nominal net (1 m mesh, 0.5 kg corner masses: 3.03 kg) is within the 4 kg budget
+    path = ROOT / "scenarios" / "optimize_capture.toml"
+    opt = load_optimisation(path)
+    assert (opt.trials, len(opt.draws), opt.objective.equals) == (24, 12, "captured")
+    envelope = tomllib.loads((ROOT / "scenarios" / "study_capture_envelope.toml").read_text())
+    assert set(opt.vary) == set(envelope["vary"]) - set(opt.design)
+    nominal = design_quantities(opt, {"net.mesh_length": 1.0, "net.corner_mass": 0.5})
+    assert nominal["net_mass_kg"] == pytest.approx(3.03, abs=0.01) and \
+        nominal["net_mass_kg"] < opt.constraints["net_mass_kg"]["max"]
+    mine = tmp_path / "mine.toml"
+    mine.write_text(path.read_text().replace("[design]", '[design]\n"net.nodes_per_side" = '
+                                             '{low = 15, high = 21, int = true}\n'
+                                             '"closing.trigger" = {values = ["contact", "wrap"]}'))
+    columns = load_optimisation(mine).columns
+    assert columns["net.nodes_per_side"] == "net.nodes_per_side"
+    assert columns["closing.trigger"] == "closing.trigger"
