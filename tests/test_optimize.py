@@ -117,29 +117,57 @@ def test_every_design_runs_the_same_draws(tmp_path):
     assert len(designs) == 6  # six different designs, each on the same four draws
 
 
-def test_resume_after_a_kill_gives_the_same_trials(tmp_path):
+@pytest.mark.parametrize("sampler", ["tpe", "cmaes"])
+def test_resume_after_a_kill_gives_the_same_trials(tmp_path, sampler):
     # reference: the uninterrupted 40-design run; a driver stopped half-way through design
     # 17 (KeyboardInterrupt from the function, as Ctrl-C or a kill would stop it) and
     # resumed, and a run of 15 designs raised to 40, give the same table but wall times
+    def plan(trials: int = 40):
+        return load_optimisation(bowl(tmp_path, trials, sampler))
+
     straight = tmp_path / "straight"
-    run_optimisation(load_optimisation(bowl(tmp_path)), straight, serial=True)
+    run_optimisation(plan(), straight, serial=True)
 
     killed = tmp_path / "killed"
     study_functions.BOWL_CALLS["left"] = 4 * 17 + 2
     try:
         with pytest.raises(KeyboardInterrupt):
-            run_optimisation(load_optimisation(bowl(tmp_path)), killed, serial=True)
+            run_optimisation(plan(), killed, serial=True)
     finally:
         study_functions.BOWL_CALLS["left"] = None
     assert len(read_table(killed / "runs.csv")[1]) == 4 * 17 + 2  # finished runs kept
-    resumed = run_optimisation(load_optimisation(bowl(tmp_path)), killed, serial=True)
+    resumed = run_optimisation(plan(), killed, serial=True)
     assert (resumed["skipped"], resumed["trials"]) == (17, 23)
     assert without_wall(killed) == without_wall(straight)
 
     extended = tmp_path / "extended"
-    run_optimisation(load_optimisation(bowl(tmp_path, trials=15)), extended, serial=True)
-    run_optimisation(load_optimisation(bowl(tmp_path)), extended, serial=True)
+    run_optimisation(plan(15), extended, serial=True)
+    run_optimisation(plan(), extended, serial=True)
     assert without_wall(extended) == without_wall(straight)
+
+
+def test_dask_and_serial_give_the_same_designs(tmp_path):
+    # reference: the serial run; each design's runs on 2 Dask workers finish in any order,
+    # but the table (in run order) and so the designs asked are the same
+    opt = load_optimisation(bowl(tmp_path, trials=3))
+    run_optimisation(opt, tmp_path / "serial", serial=True)
+    run_optimisation(opt, tmp_path / "dask", workers=2)
+    assert without_wall(tmp_path / "dask") == without_wall(tmp_path / "serial")
+
+
+def test_a_failed_run_is_a_row_not_a_crash(tmp_path):
+    # reference: the draws themselves; runs whose u > 0.5 raise, each is a row with status
+    # error and the exception's message, and every design is scored from the others
+    path = bowl(tmp_path, trials=3)
+    path.write_text(path.read_text().replace("[vary]", "[set]\nfail_above = 0.5\n[vary]"))
+    opt = load_optimisation(path)
+    done = run_optimisation(opt, tmp_path / "out", serial=True)
+    failing = sum(d["u"] > 0.5 for d in opt.draws)
+    assert 0 < failing < len(opt.draws)
+    rows = read_table(tmp_path / "out" / "runs.csv")[1]
+    errors = [r for r in rows if r["status"] == "error"]
+    assert len(errors) == 3 * failing and all("ValueError" in r["message"] for r in errors)
+    assert done["trials"] == 3 and done["best"].user_attrs["completed"] == 4 - failing
 
 
 def test_a_probability_objective_is_its_wilson_bound_less_the_cost(tmp_path):
