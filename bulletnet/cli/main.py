@@ -335,7 +335,7 @@ def _add_optimize(sub) -> None:
     opt.add_argument("--confirm", type=int, default=0, metavar="K",
                      help="with --report: first run the best design on K fresh draws (a seed "
                      "stream apart from the optimisation's) and report its objective and, for "
-                     "a probability, its Wilson interval [default: 0, none]")
+                     "a probability, its Wilson interval (0: none)")
     _add_dask(opt, "each design's runs")
 
 

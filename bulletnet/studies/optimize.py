@@ -63,7 +63,7 @@ from pathlib import Path
 import numpy as np
 
 from ..common.errors import ScenarioError
-from .report import wilson
+from .report import _numeric, wilson
 from .runner import dask_client, fan_out, warm_up
 from .study import (
     TAIL,
@@ -345,17 +345,13 @@ def design_quantities(opt: Optimisation, params: dict) -> dict:
     from ..model.scenario import load
 
     model = build_model(load(opt.scene, opt.fixed | params))
-    net = model.kind <= NodeKind.CORNER_MASS
+    net = np.isin(model.kind, [NodeKind.INNER, NodeKind.EDGE, NodeKind.CORNER,
+                               NodeKind.CORNER_MASS])
     return {"net_mass_kg": float(model.mass[net].sum())}
 
 
 # ---------------------------------------------------------------------------------------------
 # scoring a design
-
-def _numeric(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) \
-        and math.isfinite(value)
-
 
 def assess(opt: Optimisation, rows: list[dict], quantities: dict) -> dict:
     """A design's scores from its runs' rows and its design quantities: ``objective`` (None
@@ -385,8 +381,8 @@ def assess(opt: Optimisation, rows: list[dict], quantities: dict) -> dict:
         cost = statistics.fmean(found) if found else math.nan
         result["cost"] = cost
     sign = -1.0 if ob.direction == "maximize" else 1.0
-    score = None if result["objective"] is None else result["objective"] + sign * \
-        ob.cost_weight * cost
+    penalty = ob.cost_weight * cost if ob.cost_weight else 0.0  # a cost for the front only
+    score = None if result["objective"] is None else result["objective"] + sign * penalty
     result["score"] = score if score is None or math.isfinite(score) else None
     violations = {}
     for name, bound in opt.constraints.items():
