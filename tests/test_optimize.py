@@ -276,3 +276,15 @@ def test_the_capture_optimisation_file_loads(tmp_path):
     columns = load_optimisation(mine).columns
     assert columns["net.nodes_per_side"] == "net.nodes_per_side"
     assert columns["closing.trigger"] == "closing.trigger"
+
+
+def test_a_changed_file_does_not_resume_into_the_folder(tmp_path):
+    # reference: the folder's optimize.json; more trials go on, any other change is refused
+    run_optimisation(load_optimisation(bowl(tmp_path, trials=2)), tmp_path / "out", serial=True)
+    path = bowl(tmp_path, trials=3)
+    path.write_text(path.read_text().replace("seed = 3", "seed = 4"))
+    with pytest.raises(ScenarioError, match="holds another optimisation"):
+        run_optimisation(load_optimisation(path), tmp_path / "out", serial=True)
+    done = run_optimisation(load_optimisation(bowl(tmp_path, trials=3)), tmp_path / "out",
+                            serial=True)
+    assert (done["skipped"], done["trials"]) == (2, 1)

@@ -50,6 +50,7 @@ Design quantities (scene targets only, of the design with [set], before any run)
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import importlib
 import importlib.util
 import json
@@ -248,6 +249,8 @@ class Optimisation:
     constraints: dict[str, dict]
     draws: tuple[dict, ...]
     """The K uncertainty draws every design runs (varied key -> value)."""
+    scene_sha256: str | None = None
+    """SHA-256 of the base scene's TOML (with [set]), to tell a changed scene on resume."""
 
     @property
     def columns(self) -> dict[str, str]:
@@ -261,7 +264,8 @@ class Optimisation:
     def describe(self) -> dict:
         """JSON-ready: ``DIR/optimize.json`` (what resuming checks and the report reads)."""
         return {"source": str(self.path), "file": self.doc, "units": self.units,
-                "columns": self.columns, "measures": list(self.measures)}
+                "columns": self.columns, "measures": list(self.measures),
+                "scene_sha256": self.scene_sha256}
 
     def distributions(self) -> dict:
         return {key: v.distribution() for key, v in self.design.items()}
@@ -319,11 +323,13 @@ def parse_optimisation(doc: dict, path: Path) -> Optimisation:
                             "sampler = \"tpe\"")
     drawn = draw("random", draws, seed, vary) if vary else [{} for _ in range(draws)]
     units = dict.fromkeys([*design, *vary], "-")
+    digest = None
     if scene is not None:
-        from ..model.scenario import unit_of
+        from ..model.scenario import load, to_toml, unit_of
 
         try:
             units = {k: unit_of(k) for k in units}
+            digest = hashlib.sha256(to_toml(load(scene, fixed)).encode()).hexdigest()
         except ScenarioError as exc:
             raise ScenarioError(f"{path}: {exc}") from None
         corners = [{k: v.corners()[j] for k, v in design.items()} for j in (0, 1)]
@@ -332,7 +338,7 @@ def parse_optimisation(doc: dict, path: Path) -> Optimisation:
     return Optimisation(path=path, doc=doc, scene=scene, function=function, seed=seed,
                         trials=trials, sampler=sampler, fixed=fixed, design=design, vary=vary,
                         units=units, measures=measures, objective=objective,
-                        constraints=constraints, draws=tuple(drawn))
+                        constraints=constraints, draws=tuple(drawn), scene_sha256=digest)
 
 
 def design_quantities(opt: Optimisation, params: dict) -> dict:
@@ -447,19 +453,25 @@ class _Planned:
 
 class Runner:
     """Where a design's runs go: serial in this process, or one Dask client for the whole
-    optimisation (each worker warmed up once with the base scene's kernels)."""
+    optimisation; opened, and each worker warmed up with the base scene's kernels, once there
+    is a run to do."""
 
     def __init__(self, opt: Optimisation, scheduler: str | None, workers: int, serial: bool):
         self.opt, self.serial = opt, serial
+        self.scheduler, self.workers = scheduler, workers
         self.stack = contextlib.ExitStack()
         self.client = None
-        warm = (opt.scene, (opt.fixed,)) if opt.scene is not None else None
-        if not serial:
-            self.client = self.stack.enter_context(dask_client(scheduler, workers))
+        self.ready = False
+
+    def _start(self) -> None:
+        warm = (self.opt.scene, (self.opt.fixed,)) if self.opt.scene is not None else None
+        if not self.serial:
+            self.client = self.stack.enter_context(dask_client(self.scheduler, self.workers))
             if warm is not None:
                 self.client.run(warm_up, *warm)
         elif warm is not None:
             warm_up(*warm)
+        self.ready = True
 
     def __enter__(self) -> Runner:
         return self
@@ -478,6 +490,8 @@ class Runner:
         def lost(job: tuple, message: str) -> dict:
             return {"run": job[0], "status": "failed", "message": message, "wall_s": None}
 
+        if jobs and not self.ready:
+            self._start()
         columns = opt.columns
         for result in fan_out(study_run, jobs, lost, serial=self.serial, client=self.client):
             k = result["run"] - first
