@@ -93,6 +93,7 @@ and from packages of a lower rank (so packages of equal rank never import each o
 HEAVY = {  # third-party module -> the packages that may import it
     "pybullet": {"engines"}, "pybullet_utils": {"engines"},
     "dask": {"studies"}, "distributed": {"studies"}, "SALib": {"studies"},
+    "optuna": {"studies"},
     "matplotlib": {"analysis", "studies"},
     "viser": {"viewer"},
     "h5py": {"recording"},
@@ -149,7 +150,7 @@ def test_heavy_libraries_only_where_they_belong():
         for name in third_party_imports(path) & set(HEAVY):
             found.setdefault(name, set()).add(package)
             assert package in HEAVY[name], f"{path.relative_to(PACKAGE)} imports {name}"
-    assert {"pybullet", "numba", "h5py", "viser", "dask"} <= set(found)  # the scan sees them
+    assert {"pybullet", "numba", "h5py", "viser", "dask", "optuna"} <= set(found)  # all seen
 
 
 def test_importing_the_package_loads_no_heavy_library():

@@ -1,5 +1,5 @@
 """The ``bulletnet`` command line: run, scenes, scene, warmup, params, compare, metrics, plot,
-view, bench, stability, sweep, study.
+view, bench, stability, sweep, study, optimize.
 
 Errors are one line on stderr: exit code 2 for bad input, 3 for a diverged run, 130 for an
 interrupted one."""
@@ -146,6 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_stability(sub)
     _add_sweep(sub)
     _add_study(sub)
+    _add_optimize(sub)
     return parser
 
 
@@ -316,6 +317,67 @@ def cmd_study(args) -> int:
         paths = done["paths"] + [out / "summary.json"]
         print(f"bulletnet: no figures: {exc}", file=sys.stderr)
     print("\n".join(str(p) for p in paths))
+    return 0
+
+
+def _add_optimize(sub) -> None:
+    opt = sub.add_parser("optimize", help="robust design optimisation (Optuna): design "
+                         "variables chosen to maximise an objective over the same K uncertain "
+                         "runs per design, under constraints; resumable (see docs/studies.md)")
+    opt.add_argument("file", nargs="?", metavar="FILE.toml", help="optimisation file (see "
+                     "scenarios/optimize_*.toml); rerun into the same --out to resume, or "
+                     "with more trials to go on")
+    opt.add_argument("--out", metavar="DIR", help="folder for optimize.json, optuna.journal, "
+                     "runs.csv (one row per run), summary.json and figures/")
+    opt.add_argument("--report", metavar="DIR", help="run no design: write DIR/summary.json "
+                     "(every design, the best, each variable's importance) and DIR/figures/ "
+                     "(the objective-cost front, the history) and print the best design")
+    opt.add_argument("--confirm", type=int, default=0, metavar="K",
+                     help="with --report: first run the best design on K fresh draws (a seed "
+                     "stream apart from the optimisation's) and report its objective and, for "
+                     "a probability, its Wilson interval (0: none)")
+    _add_dask(opt, "each design's runs")
+
+
+def cmd_optimize(args) -> int:
+    from pathlib import Path
+
+    from ..studies.optimize import load_optimisation, run_optimisation
+    from ..studies.optimize_report import report_optimisation, summary_text
+
+    if (args.file is None) == (args.report is None):
+        raise ScenarioError("give a FILE.toml to run, or --report DIR, not both")
+    if args.confirm < 0 or (args.confirm and args.report is None):
+        raise ScenarioError(f"--confirm {args.confirm}: an integer >= 0, with --report DIR")
+    _check_workers(args.workers)
+    if args.report is not None:
+        out = Path(args.report)
+        paths = report_optimisation(out, args.confirm, args.scheduler, args.workers,
+                                    args.serial)
+        print("\n".join([*summary_text(out), *map(str, paths)]))
+        return 0
+    if args.out is None:
+        raise ScenarioError("--out DIR: the optimisation's folder is required (rerun into it "
+                            "to resume)")
+    spec = load_optimisation(args.file)
+    out = Path(args.out)
+    print(f"bulletnet: optimize {spec.path.name}: {spec.trials} designs ({spec.sampler}) of "
+          f"{len(spec.draws)} runs of {spec.function or spec.scene} -> {out}", file=sys.stderr)
+    try:
+        done = run_optimisation(spec, out, args.scheduler, args.workers, args.serial,
+                                log=lambda text: print(text, file=sys.stderr))
+    except KeyboardInterrupt:
+        print(f"\nbulletnet: optimisation interrupted; {out} keeps every finished run and "
+              "design: rerun the same command to resume", file=sys.stderr)
+        return 130
+    print(f"{done['trials']} designs in {done['wall_s']:.1f} s wall; {done['skipped']} were "
+          "already done")
+    try:
+        paths = report_optimisation(out)
+    except BulletnetError as exc:  # e.g. no matplotlib: the table and summary.json stand
+        paths = [out / "summary.json"]
+        print(f"bulletnet: no figures: {exc}", file=sys.stderr)
+    print("\n".join([*summary_text(out), str(done["table"]), *map(str, paths)]))
     return 0
 
 
@@ -811,7 +873,7 @@ def main(argv: list[str] | None = None) -> int:
                "params": cmd_params, "compare": cmd_compare, "metrics": cmd_metrics,
                "plot": cmd_plot, "view": cmd_view,
                "bench": cmd_bench, "stability": cmd_stability,
-               "sweep": cmd_sweep, "study": cmd_study}[args.command]
+               "sweep": cmd_sweep, "study": cmd_study, "optimize": cmd_optimize}[args.command]
     signal.signal(signal.SIGTERM, _terminate)
     try:
         return handler(args)

@@ -755,7 +755,8 @@ def resolve_path(name_or_path: str) -> Path:
     named = SCENARIO_DIR / f"{name_or_path}.toml"
     plan = _plan_kind(named) if named.is_file() else ""
     if plan:
-        raise ScenarioError(f"{name_or_path}: a {plan} file, not a scene; run it with "
+        what = "an optimisation" if plan == "optimize" else f"a {plan}"
+        raise ScenarioError(f"{name_or_path}: {what} file, not a scene; run it with "
                             f"`bulletnet {plan} {named}`")
     if named.is_file():
         return named
@@ -764,19 +765,23 @@ def resolve_path(name_or_path: str) -> Path:
 
 
 def _plan_kind(path: Path) -> str:
-    """``"study"`` or ``"sweep"`` if a .toml is a study or a sweep file (its ``scene`` names
-    the base scene, where a scene's is a table; a study has a ``design``), else ``""``."""
+    """``"optimize"``, ``"study"`` or ``"sweep"`` if a .toml is an optimisation, a study or a
+    sweep file (its ``scene`` names the base scene, where a scene's is a table; an
+    optimisation has an ``objective``, a study a ``design``), else ``""``."""
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
         return ""
+    if "objective" in doc:
+        return "optimize"
     if "design" in doc:
         return "study"
     return "sweep" if isinstance(doc.get("scene"), str) else ""
 
 
 def scene_names() -> list[str]:
-    """Names of the shipped scenes: ``scenarios/*.toml`` without the sweep and study files."""
+    """Names of the shipped scenes: ``scenarios/*.toml`` without the sweep, study and
+    optimisation files."""
     return sorted(q.stem for q in SCENARIO_DIR.glob("*.toml") if not _plan_kind(q))
 
 

@@ -91,14 +91,15 @@ def estimated_cost(scene: str, overrides: dict) -> float:
 def fan_out(fn: Callable[..., dict], jobs: list[tuple], lost: Callable[[tuple, str], dict], *,
             scheduler: str | None = None, workers: int = 2, serial: bool = False,
             warm: tuple[str, tuple[dict, ...]] | None = None,
-            costs: list[float] | None = None) -> Iterator[dict]:
+            costs: list[float] | None = None, client=None) -> Iterator[dict]:
     """Call ``fn(*job)`` for every job and yield each result as it finishes: on Dask (a local
     cluster of ``workers`` processes, or ``scheduler``), or one after another in this process
     with ``serial``. ``fn`` must not raise (it reports a failure in its result); a job whose
     worker died or was lost yields ``lost(job, message)`` instead, and the others go on.
     ``warm``: (scene, variants) whose kernels each worker loads first (:func:`warm_up`);
     ``costs``: the jobs' relative costs, handed out longest first, so that no long job is left
-    running alone at the end."""
+    running alone at the end. ``client``: a Dask client already open (:func:`dask_client`)
+    to run on instead of opening one (``scheduler`` and ``workers`` are then unused)."""
     if serial:
         if warm is not None:
             warm_up(*warm)
@@ -106,7 +107,9 @@ def fan_out(fn: Callable[..., dict], jobs: list[tuple], lost: Callable[[tuple, s
             yield fn(*job)
         return
     order = sorted(range(len(jobs)), key=lambda k: -costs[k]) if costs else range(len(jobs))
-    with dask_client(scheduler, workers) as client:
+    opened = contextlib.nullcontext(client) if client is not None \
+        else dask_client(scheduler, workers)
+    with opened as client:
         from dask.distributed import as_completed
 
         if warm is not None:

@@ -171,9 +171,7 @@ class Study:
     @property
     def columns(self) -> dict[str, str]:
         """Varied key -> its column in the table: ``KEY_UNIT`` (``net.mesh_length_m``)."""
-        return {key: key if self.units[key] == "-" else
-                f"{key}_{self.units[key].replace('/', '_').replace('^', '')}"
-                for key in self.vary}
+        return column_names(self.units)
 
     @property
     def header(self) -> list[str]:
@@ -190,6 +188,13 @@ class Study:
             "units": self.units, "columns": self.columns, "measures": list(self.measures),
             "scene_sha256": self.scene_sha256,
         }
+
+
+def column_names(units: dict[str, str]) -> dict[str, str]:
+    """Key -> its column in a run table: ``KEY_UNIT`` (``net.mesh_length_m``), or the key
+    itself where its unit is ``-``."""
+    return {key: key if unit == "-" else f"{key}_{unit.replace('/', '_').replace('^', '')}"
+            for key, unit in units.items()}
 
 
 def load_study(path: str | Path) -> Study:
@@ -229,7 +234,7 @@ def load_study(path: str | Path) -> Study:
     total = runs * (len(dists) + 2) if design == "sobol" else runs
     if total > MAX_RUNS:
         raise ScenarioError(f"{path}: {total} runs planned; at most {MAX_RUNS}")
-    measures = _measures(doc, scene, function, fixed, path)
+    measures = study_measures(doc, scene, function, fixed, path)
     values = draw(design, runs, seed, dists)
     units = {k: "-" for k in dists}
     digest = None
@@ -247,8 +252,8 @@ def load_study(path: str | Path) -> Study:
                  values=tuple(values), scene_sha256=digest)
 
 
-def _measures(doc: dict, scene: str | None, function: str | None, fixed: dict,
-              path: Path) -> tuple[str, ...]:
+def study_measures(doc: dict, scene: str | None, function: str | None, fixed: dict,
+                   path: Path) -> tuple[str, ...]:
     """The measure columns: a function study's ``measures`` list, a scene's own measures."""
     measures = doc.get("measures")
     if function is None:
@@ -400,7 +405,9 @@ def latest(rows: list[dict]) -> dict[int, dict]:
 
 class RunTable:
     """``DIR/runs.csv``, opened for appending: each finished run is one line, written and
-    flushed as it arrives, so a killed driver loses no finished row."""
+    flushed as it arrives, so a killed driver loses no finished row. ``study``: a
+    :class:`Study`, or anything with its ``header``, ``columns`` and ``values`` (the planned
+    inputs of the runs already in the table, which it checks)."""
 
     def __init__(self, path: Path, study: Study):
         self.path = path
