@@ -117,6 +117,26 @@ def test_every_design_runs_the_same_draws(tmp_path):
     assert len(designs) == 6  # six different designs, each on the same four draws
 
 
+def test_the_first_design_is_evaluated_first_on_the_same_draws(tmp_path):
+    # reference: the bowl at a given design, f = -(x - 0.3)^2 - (y - 0.7)^2 + 0.05 u, on the
+    # file's K draws: trial 0 is [first] and scored as the closed form says; the sampler's
+    # designs follow (resumed, no second copy of it); a value outside its bound is refused
+    path = bowl(tmp_path, trials=4)
+    path.write_text(path.read_text() + "[first]\nx = 0.5\ny = 0.25\n")
+    opt = load_optimisation(path)
+    run_optimisation(opt, tmp_path / "out", serial=True)
+    rows = read_table(tmp_path / "out" / "runs.csv")[1]
+    first = [r for r in rows if r["design"] == 0]
+    assert len(rows) == 16 and {(r["x"], r["y"]) for r in first} == {(0.5, 0.25)}
+    assert [r["f"] for r in first] == pytest.approx(
+        [-(0.5 - 0.3) ** 2 - (0.25 - 0.7) ** 2 + 0.05 * d["u"] for d in opt.draws], abs=1e-12)
+    resumed = run_optimisation(load_optimisation(path), tmp_path / "out", serial=True)
+    assert (resumed["skipped"], resumed["trials"]) == (4, 0)
+    path.write_text(path.read_text().replace("x = 0.5", "x = 1.5"))
+    with pytest.raises(ScenarioError, match=r"first\.x: 1\.5 is outside"):
+        load_optimisation(path)
+
+
 @pytest.mark.parametrize("sampler", ["tpe", "cmaes"])
 def test_resume_after_a_kill_gives_the_same_trials(tmp_path, sampler):
     # reference: the uninterrupted 40-design run; a driver stopped half-way through design

@@ -29,6 +29,8 @@ An optimisation file (TOML)::
     [constraints]               # a measure's or a design quantity's bounds, each draw
     net_mass_kg = {max = 60.0}
     min_safety_factor = {min = 1.0}
+    [first]                     # optional: a design evaluated first, e.g. today's, so that
+    "net.mesh_length" = 1.0     #   it is scored on the same K draws as the others
 
 **Common random numbers**: the K uncertainty draws (seeded numpy uniforms through each
 distribution's inverse CDF, :func:`bulletnet.studies.study.draw`) are drawn once, from the
@@ -82,7 +84,7 @@ from .study import (
 from .sweep import base_scene, build_variants, plan_table, read_plan
 
 KEYS = ("scene", "function", "measures", "seed", "trials", "draws", "sampler", "design", "set",
-        "vary", "objective", "constraints")
+        "vary", "objective", "constraints", "first")
 """The keys of an optimisation file."""
 
 SAMPLERS = ("tpe", "cmaes")
@@ -251,6 +253,8 @@ class Optimisation:
     """The K uncertainty draws every design runs (varied key -> value)."""
     scene_sha256: str | None = None
     """SHA-256 of the base scene's TOML (with [set]), to tell a changed scene on resume."""
+    first: dict | None = None
+    """A design (key -> value) evaluated as trial 0, or None: the sampler's from the start."""
 
     @property
     def columns(self) -> dict[str, str]:
@@ -321,6 +325,7 @@ def parse_optimisation(doc: dict, path: Path) -> Optimisation:
     if constraints and sampler == "cmaes":
         raise ScenarioError(f"{path}: constraints: Optuna's CMA-ES sampler takes none; use "
                             "sampler = \"tpe\"")
+    first = parse_first(doc.get("first"), design, f"{path}: first")
     drawn = draw("random", draws, seed, vary) if vary else [{} for _ in range(draws)]
     units = dict.fromkeys([*design, *vary], "-")
     digest = None
@@ -338,7 +343,25 @@ def parse_optimisation(doc: dict, path: Path) -> Optimisation:
     return Optimisation(path=path, doc=doc, scene=scene, function=function, seed=seed,
                         trials=trials, sampler=sampler, fixed=fixed, design=design, vary=vary,
                         units=units, measures=measures, objective=objective,
-                        constraints=constraints, draws=tuple(drawn), scene_sha256=digest)
+                        constraints=constraints, draws=tuple(drawn), scene_sha256=digest,
+                        first=first)
+
+
+def parse_first(spec, design: dict[str, Variable], where: str) -> dict | None:
+    """The ``[first]`` design: a value for every design variable, in its domain."""
+    if spec is None:
+        return None
+    if not isinstance(spec, dict) or set(spec) != set(design):
+        raise ScenarioError(f"{where}: expected a value for each design variable "
+                            f"({', '.join(design)}), got {spec!r}")
+    for key, value in spec.items():
+        v = design[key]
+        inside = value in v.values if v.values is not None else (
+            isinstance(value, int | float) and not isinstance(value, bool)
+            and v.low <= value <= v.high and (not v.integer or value == int(value)))
+        if not inside:
+            raise ScenarioError(f"{where}.{key}: {value!r} is outside the variable's domain")
+    return dict(spec)
 
 
 def design_quantities(opt: Optimisation, params: dict) -> dict:
@@ -542,7 +565,9 @@ def run_optimisation(opt: Optimisation, out: Path, scheduler: str | None = None,
     log = log or (lambda _: None)
     _check_folder(opt, out)
     study = open_study(opt, out)
-    trials = study.get_trials(deepcopy=False)
+    if opt.first is not None and not study.get_trials(deepcopy=False):
+        study.enqueue_trial(opt.first)  # trial 0: the next ask gives these values
+    trials = asked(study)
     K = len(opt.draws)
     table = _table(opt, out / "runs.csv", [(t.number, t.params) for t in trials], opt.draws)
     finished = [t for t in trials if t.state.is_finished()]
@@ -554,7 +579,7 @@ def run_optimisation(opt: Optimisation, out: Path, scheduler: str | None = None,
     try:
         with Runner(opt, scheduler, workers, serial) as runner:
             while True:
-                trials = study.get_trials(deepcopy=False)
+                trials = asked(study)
                 running = [t for t in trials if t.state == TrialState.RUNNING]
                 if not running and len(trials) >= opt.trials:
                     break
@@ -582,6 +607,13 @@ def run_optimisation(opt: Optimisation, out: Path, scheduler: str | None = None,
         table.close()
     return {"trials": ran, "skipped": skipped, "wall_s": time.perf_counter() - start,
             "best": best_trial(study), "table": out / "runs.csv"}
+
+
+def asked(study) -> list:
+    """The study's trials asked so far (not one enqueued and waiting to be asked)."""
+    from optuna.trial import TrialState
+
+    return [t for t in study.get_trials(deepcopy=False) if t.state != TrialState.WAITING]
 
 
 def best_trial(study):

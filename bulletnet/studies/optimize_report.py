@@ -22,7 +22,7 @@ import math
 from pathlib import Path
 
 from ..common.errors import ScenarioError
-from .optimize import best_trial, confirm, load_folder, optuna_module
+from .optimize import asked, best_trial, confirm, load_folder, optuna_module
 from .report import _save
 
 
@@ -32,7 +32,7 @@ def trial_rows(study, opt) -> list[dict]:
     columns = opt.columns
     return [{"design": t.number, "state": t.state.name.lower(),
              "variables": {columns[k]: v for k, v in t.params.items()}, **t.user_attrs}
-            for t in study.get_trials(deepcopy=False)]
+            for t in asked(study)]
 
 
 def importances(study) -> tuple[dict, str]:
