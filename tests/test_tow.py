@@ -355,6 +355,21 @@ def test_a_run_records_the_burn_and_the_tow(tmp_path):
     assert attrs["tow_start_s"] == 0.2 and attrs["tow_least_distance_m"] > 0.0
     tow = summary(bn.open_recording(result.path))["tow"]
     assert tow["tow_outcome"] == "slipped" and tow["thrust_axial_frequency_rad_s"] > 0.0
+    # Reference: the run's own judgement: the tow judged again from the recorded frames
+    # (metrics.tow_outcome) gives the same attributes (the distance from the recorded body
+    # pose, to round-off), and its figure is drawn.
+    from bulletnet.analysis.metrics import tow_outcome, tow_series
+    from bulletnet.analysis.plots import plot_recordings
+
+    rec = bn.open_recording(result.path)
+    again = tow_outcome(rec).attributes()
+    for key, value in again.items():
+        expected = attrs[key] if isinstance(value, str) else pytest.approx(attrs[key],
+                                                                           rel=1e-12, abs=1e-12)
+        assert value == expected, key
+    series = tow_series(rec)
+    assert series["time"][0] == 0.2 and series["thrust"][0] > 0.0
+    assert (tmp_path / "figs" / "tow.png") in plot_recordings(rec, None, tmp_path / "figs")
 
 
 def test_removal_scene_runs_in_orbit_with_its_shaped_burn(tmp_path):

@@ -52,7 +52,14 @@ from ..model.debris import rotation_matrix
 from ..model.net import ELEMENT_NAMES, ElementKind, thread_kinds
 from ..model.topology import center_nodes, net_corners, perimeter
 from ..recording.reader import Recording
-from .capture_score import OutcomeMonitor, ScoreGeometry, interior_samples, wrap_fraction
+from .capture_score import (
+    OutcomeMonitor,
+    ScoreGeometry,
+    interior_samples,
+    score,
+    wrap_fraction,
+)
+from .tow_score import TowMonitor
 
 LEAVE_QUIET_S = 5.0
 """Contact-free time [s] that must follow the last contact for the net to count as gone."""
@@ -238,6 +245,51 @@ def capture_outcome(rec: Recording) -> tuple[np.ndarray, OutcomeMonitor]:
                        for k in range(rec.time.size)])
     monitor.finish(rec.status == "completed")
     return scores, monitor
+
+
+def tow_series(rec: Recording) -> dict:
+    """The tow's frames, from the burn's start (``thrust_start_s``) on, as the run's tow judge
+    saw them (:class:`~bulletnet.sim.tow.TowOutcome`): ``time`` [s], ``thrust`` [N] (the
+    profile's mean over the interval to the next frame), ``tension`` [N] (the tether's at the
+    chaser, its last thread), ``distance`` [m] (chaser to the debris' centre of mass),
+    ``enclosed`` [-] (the capture score's enclosed fraction) and ``rate`` [rad/s] (the
+    debris' angular speed), each shape (F,); empty if the burn never started."""
+    from ..model.thrust import ThrustProfile
+
+    d = _require(rec, "debris")
+    start = float(rec.attrs.get("thrust_start_s", -1.0))
+    if "tow_outcome" not in rec.attrs and start < 0:
+        raise RecordingError(f"{rec.path}: no tow in this recording (a scene without "
+                             "[thrust] and [tow])")
+    frames = np.nonzero(rec.time >= start)[0] if start >= 0 else np.zeros(0, dtype=int)
+    geometry = score_geometry(rec)
+    chaser = debris_center_of_mass(rec)[frames] - rec.position[frames, -1]
+    profile = ThrustProfile(_scene(rec).thrust, start, float(rec.attrs[
+        "thrust_axial_frequency_rad_s"]), float(rec.attrs["thrust_damping_ratio"]))
+    times = rec.time[frames]
+    ends = np.append(times[1:], times[-1] + 1.0) if times.size else times
+    return {
+        "time": times,
+        "thrust": np.array([profile.mean(a, b) for a, b in zip(times, ends, strict=True)]),
+        "tension": rec.tension[frames, -1],
+        "distance": np.linalg.norm(chaser, axis=1),
+        "enclosed": np.array([score(rec.position[k], d["position"][k], d["orientation"][k],
+                                    geometry).enclosed for k in frames]),
+        "rate": np.linalg.norm(d["angular_velocity"][frames], axis=1),
+    }
+
+
+def tow_outcome(rec: Recording) -> TowMonitor:
+    """The tow judged again from the recorded frames by the recording's own ``[tow]`` rules
+    (:func:`tow_series`): the same judge on the same frames as the run's, so a run that
+    judged its tow recorded the same ``tow_*`` attributes."""
+    series = tow_series(rec)
+    monitor = TowMonitor(_scene(rec).tow)
+    for k in range(series["time"].size):
+        monitor.update(*(float(series[key][k]) for key in
+                         ("time", "tension", "distance", "enclosed", "rate")))
+    monitor.finish(rec.status == "completed")
+    return monitor
 
 
 def energy(rec: Recording) -> np.ndarray:

@@ -9,6 +9,8 @@
 - ``strength.png``: the utilisation (tension over breaking tension) of each kind of element:
   its highest over time, and the distribution of each element's peak, with the least safety
   factor, where and when (:func:`bulletnet.analysis.metrics.safety`);
+- with a burn (``[thrust]``): ``tow.png``, the tow from the burn's start: thrust and tether
+  tension, chaser-to-debris distance, enclosed fraction, the debris' angular speed;
 - with debris: ``mouth.png`` has one panel per time with the debris' long axis (grey, its
   x-y projection through the body origin; Fig. 11), and ``capture.png`` plots nodes in
   contact, the wrap measure and the capture score (enclosed fraction, mouth opening, capture
@@ -72,6 +74,9 @@ def plot_recordings(a: Recording, b: Recording | None, out_dir: str | Path,
         save(_capture_mouths(plt, recs, styles, times), "mouth.png")
         if a.contacts is not None:
             save(_capture_series(plt, recs, styles), "capture.png")
+        if a.attrs.get("thrust_start_s", -1.0) >= 0:
+            save(_tow(plt, [r for r in recs if r.attrs.get("thrust_start_s", -1.0) >= 0],
+                      styles), "tow.png")
     else:
         save(_mouths(plt, recs, styles, times, b), "mouth.png")
 
@@ -203,6 +208,39 @@ def _capture_mouths(plt, recs, styles, times):
     axes[0, 0].set_ylabel("y [m]")
     axes[0, 0].legend(fontsize=6, loc="lower left")
     fig.suptitle("Mouth shape and the debris' long axis (grey)", fontsize=10)
+    return fig
+
+
+def _tow(plt, recs, styles):
+    """The tow from the burn's start (:func:`~bulletnet.analysis.metrics.tow_series`): thrust
+    and tether tension, chaser-to-debris distance with the safe distance, the enclosed
+    fraction with its threshold and the debris' angular speed; the outcome where decided."""
+    fig, axes = plt.subplots(4, 1, figsize=(6.5, 9), sharex=True)
+    for rec, style in zip(recs, styles, strict=False):
+        series, rules = metrics.tow_series(rec), metrics._scene(rec).tow
+        t = series["time"]
+        axes[0].plot(t, series["tension"], style, color="C0", label=f"tether, {_label(rec)}")
+        axes[0].plot(t, series["thrust"], style, color="C3", lw=0.8,
+                     label=f"thrust, {_label(rec)}")
+        axes[1].plot(t, series["distance"], style, color="C0", label=_label(rec))
+        axes[1].axhline(rules.safe_distance, color="C3", lw=0.8, ls=":")
+        axes[2].plot(t, series["enclosed"], style, color="C2", label=_label(rec))
+        axes[2].axhline(rules.enclosed_fraction, color="C3", lw=0.8, ls=":")
+        axes[3].plot(t, np.degrees(series["rate"]), style, color="C1", label=_label(rec))
+        outcome, when = rec.attrs.get("tow_outcome"), rec.attrs.get("tow_outcome_time_s", -1)
+        if outcome and when >= 0:
+            for ax in axes:
+                ax.axvline(when, ls=style, lw=0.8, color="0.3")
+            axes[1].annotate(f" {outcome} at {when:.1f} s", (when, axes[1].get_ylim()[1]),
+                             fontsize=7, va="top")
+    axes[0].set_ylabel("force [N]")
+    axes[1].set_ylabel("chaser to debris\ncentre of mass [m]")
+    axes[2].set_ylabel("enclosed fraction [-]")
+    axes[3].set_ylabel("debris angular\nspeed [deg/s]")
+    axes[3].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
     return fig
 
 
