@@ -100,7 +100,8 @@ def deployed_time(rec: Recording, fraction: float = 0.9) -> float | None:
 
 def summary(rec: Recording) -> dict:
     """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys;
-    the safety margins under ``strength`` (:func:`strength_summary`); with the capture
+    the safety margins under ``strength`` (:func:`strength_summary`, and what failed under
+    its ``breakage``, :func:`breakage`: None without ``strength.breakage``); with the capture
     measures under ``capture`` for recordings with debris and contact, and the burn's and the
     tow's recorded attributes (``thrust_*``, ``tow_*``) under ``tow``."""
     doc = {
@@ -111,6 +112,7 @@ def summary(rec: Recording) -> dict:
         "status": rec.status,
     }
     doc["strength"] = strength_summary(rec)
+    doc["strength"]["breakage"] = breakage(rec)  # what failed; None without breakage
     if rec.debris is not None and rec.contacts is not None:
         doc["capture"] = capture_summary(rec)
     tow = {k: v.item() if hasattr(v, "item") else v for k, v in rec.attrs.items()
