@@ -38,6 +38,9 @@ corner threads, a bridle's lines, the tether's, by their ends' kinds:
   for each kind of element; the elements that reached their breaking tension;
 - snap loads: each element's slack -> taut events (taut at a frame, slack at the one
   before) and the peak tension of the taut spell each begins (:func:`snap_loads`).
+- with ``strength.breakage`` on, what failed: the count, the first failure's time, kind
+  and element, and the elastic energy lost at the failures (:func:`breakage`, from the
+  recorded failure times, to the step).
 
 All from the recorded frames: a peak between two frames is missed (a higher record rate
 resolves it).
@@ -104,7 +107,8 @@ def deployed_time(rec: Recording, fraction: float = 0.9) -> float | None:
 
 def summary(rec: Recording) -> dict:
     """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys;
-    the safety margins under ``strength`` (:func:`strength_summary`); with the capture
+    the safety margins under ``strength`` (:func:`strength_summary`, and what failed under
+    its ``breakage``, :func:`breakage`: None without ``strength.breakage``); with the capture
     measures under ``capture`` for recordings with debris and contact, and the burn's and the
     tow's recorded attributes (``thrust_*``, ``tow_*``) under ``tow``."""
     doc = {
@@ -115,6 +119,7 @@ def summary(rec: Recording) -> dict:
         "status": rec.status,
     }
     doc["strength"] = strength_summary(rec)
+    doc["strength"]["breakage"] = breakage(rec)  # what failed; None without breakage
     if rec.debris is not None and rec.contacts is not None:
         doc["capture"] = capture_summary(rec)
     tow = {k: v.item() if hasattr(v, "item") else v for k, v in rec.attrs.items()
@@ -296,16 +301,24 @@ def energy(rec: Recording) -> np.ndarray:
     """Mechanical energy [J], shape (T,): the nodes' translational kinetic energy, the
     threads' and closing cables' elastic energy (Eq. 3 springs) and, with debris, its kinetic
     energy (translation of its centre of mass and rotation about it). Leaves out the nodes'
-    rotation and the bending and contact springs (see the module doc)."""
+    rotation and the bending and contact springs (see the module doc), and the elements
+    that have failed (``strength.breakage``; their energy at the failure, lost, is the
+    recording's ``broken_energy_J``)."""
     from ..kernels.axial import axial_energy
 
     total = 0.5 * np.einsum("n,tna,tna->t", rec.mass, rec.velocity, rec.velocity)
-    total += axial_energy(rec.position, rec.pairs, rec.rest_length, rec.stiffness)
+    stiffness = rec.stiffness
+    if rec.failure_time is not None:  # a failed thread holds nothing from its failure on
+        stiffness = np.where(_failed(rec.time, rec.failure_time), 0.0, stiffness)
+    total += axial_energy(rec.position, rec.pairs, rec.rest_length, stiffness)
     if rec.cables is not None:
         from ..kernels.cable import cable_energy
 
         c = rec.cables
-        total += cable_energy(c["length"], c["rest_length"], c["rigidity"]).sum(axis=1)
+        rigidity = c["rigidity"]
+        if "failure_time" in c:
+            rigidity = np.where(_failed(rec.time, c["failure_time"]), 0.0, rigidity)
+        total += cable_energy(c["length"], c["rest_length"], rigidity).sum(axis=1)
     if rec.debris is not None:
         d = rec.debris
         rot = rotation_matrix(d["orientation"])
@@ -315,6 +328,12 @@ def energy(rec: Recording) -> np.ndarray:
                                                               d["velocity"])
         total += 0.5 * np.einsum("ta,tab,tb->t", w, inertia, w)
     return total
+
+
+def _failed(time: np.ndarray, failure_time: np.ndarray) -> np.ndarray:
+    """Whether each element has failed by each frame [-], shape (T, E), from the frame
+    times (T,) and the failure times (E,) [s] (-1: intact): after the step it failed in."""
+    return (failure_time >= 0) & (time[:, None] > failure_time)
 
 
 def winch_work(rec: Recording) -> np.ndarray:
@@ -488,3 +507,36 @@ def strength_summary(rec: Recording) -> dict:
             "utilisation": float(peaks[index] / breaking_tension(rec)[index]),
             "events": int(events[index]), "element": element(rec, index, frame)}
     return doc
+
+
+def failures(thread_time: np.ndarray, cable_time: np.ndarray, kinds: np.ndarray,
+             energy_J: float) -> dict:
+    """What failed (JSON-ready), from each thread's failure time (P,) and each cable's (C,)
+    [s] (-1: intact) and the threads' :class:`~bulletnet.model.net.ElementKind` (P,):
+    ``broken_threads`` and ``broken_cables`` [-], ``first_break_s`` [s] (-1: none), its
+    ``first_break_kind`` (in words; "" if none) and ``first_break_index`` (in ``/threads``
+    or ``/cables``; -1 if none), and ``broken_energy_J``, the elastic energy the failed
+    elements held when they failed [J]."""
+    times = np.concatenate([thread_time, cable_time])
+    broken = times >= 0
+    out = {"broken_threads": int(np.count_nonzero(thread_time >= 0)),
+           "broken_cables": int(np.count_nonzero(cable_time >= 0)),
+           "first_break_s": -1.0, "first_break_kind": "", "first_break_index": -1,
+           "broken_energy_J": float(energy_J)}
+    if broken.any():
+        first = int(np.flatnonzero(broken)[np.argmin(times[broken])])
+        cable = first >= thread_time.size
+        kind = ElementKind.CABLE if cable else ElementKind(int(kinds[first]))
+        out.update(first_break_s=float(times[first]), first_break_kind=ELEMENT_NAMES[kind],
+                   first_break_index=first - thread_time.size if cable else first)
+    return out
+
+
+def breakage(rec: Recording) -> dict | None:
+    """What failed in a run with ``strength.breakage`` on (:func:`failures`, from its
+    recorded failure times and attributes); None for a recording without breakage."""
+    if rec.failure_time is None:
+        return None
+    cables = np.zeros(0) if rec.cables is None else rec.cables["failure_time"]
+    return failures(rec.failure_time, cables, thread_kinds(rec.pairs, rec.kind),
+                    float(rec.attrs.get("broken_energy_J", 0.0)))

@@ -790,9 +790,10 @@ def _where(margin: dict) -> str:
 def strength_text(doc: dict) -> list[str]:
     """The safety margins of :func:`bulletnet.analysis.metrics.strength_summary` as lines:
     the least safety factor, where (the element, its ends' positions) and when, the least
-    of each kind, the elements over their strength and the largest snap load."""
+    of each kind, the elements over their strength and the largest snap load; with
+    breakage, what failed (:func:`breakage_text`)."""
     if doc["least_safety_factor"] is None:
-        return ["least safety factor: no element was ever taut"]
+        return ["least safety factor: no element was ever taut", *breakage_text(doc)]
     ends = " and ".join(_vec(p, ".3f") for p in doc["element"]["positions_m"])
     lines = [f"least safety factor (breaking tension / largest tension): "
              f"{doc['least_safety_factor']:.4g}, {_where(doc)}: {doc['tension_N']:.4g} N "
@@ -808,7 +809,23 @@ def strength_text(doc: dict) -> list[str]:
         lines.append(f"largest snap load: {snap['tension_N']:.4g} N (utilisation "
                      f"{snap['utilisation']:.3g}) in {_where(snap)}; "
                      f"{doc['snap_events']} slack -> taut events in all")
-    return lines
+    return lines + breakage_text(doc)
+
+
+def breakage_text(doc: dict) -> list[str]:
+    """What failed (``strength.breakage`` on; the ``breakage`` of
+    :func:`bulletnet.analysis.metrics.summary`'s strength) as lines; none without."""
+    b = doc.get("breakage")
+    if b is None:
+        return []
+    text = (f"failed (breakage on): {b['broken_threads']} threads, {b['broken_cables']} "
+            "closing cables")
+    if b["first_break_s"] >= 0:
+        where = "/cables" if b["first_break_kind"] == "closing cable" else "/threads"
+        text += (f"; the first at {b['first_break_s']:.6f} s, {b['first_break_kind']} "
+                 f"{b['first_break_index']} (in {where}); elastic energy lost at the failures "
+                 f"{b['broken_energy_J']:.4g} J")
+    return [text]
 
 
 def _print_tow(tow: dict) -> None:

@@ -8,6 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..kernels.breakage import BreakageArrays, breaking_arrays
 from ..kernels.cable import CableArrays, cable_arrays
 from ..kernels.orbit import OrbitArrays, orbit_arrays
 from ..model.builder import scene_debris
@@ -60,6 +61,14 @@ def winch_cables(scenario: Scenario, model: NetModel) -> CableArrays:
     return cables
 
 
+def scene_breakage(scenario: Scenario, model: NetModel) -> BreakageArrays | None:
+    """The breakage arrays of the model's threads and cables, every element intact, or None
+    without ``strength.breakage``."""
+    if not scenario.strength.breakage:
+        return None
+    return breaking_arrays(model.breaking_tension, model.cable_breaking_tension)
+
+
 def scene_orbit(scenario: Scenario) -> OrbitArrays | None:
     """The scene's reference orbit as the kernels read it, or None without ``[orbit]``."""
     o = scenario.orbit
@@ -78,6 +87,12 @@ class Engine(ABC):
         self.cables = winch_cables(scenario, model)
         """The closing cables and their winches, as the kernels read and write them."""
         self.arrays = integrators.model_arrays(model, self.cables, scene_orbit(scenario))
+        self.breakage = scene_breakage(scenario, model)
+        """What fails and when (:mod:`bulletnet.kernels.breakage`); None without breakage."""
+        if self.breakage is not None:  # the kernels zero a failed thread's parameters
+            a = self.arrays
+            self.arrays = a._replace(**{name: getattr(a, name).copy() for name in (
+                "k_a", "c_a", "k_t", "c_t", "k_b", "c_b")})
         self.work = integrators.workspace(model.node_count, model.thread_count)
         self._loads_work = integrators.workspace(model.node_count, model.thread_count)
         """Scratch space of :meth:`thread_loads` (the stepping workspace keeps its warm start)."""
@@ -134,6 +149,16 @@ class Engine(ABC):
         c = self.cables
         return {"tension": c.tension.copy(), "length": c.length.copy(),
                 "rest_length": c.rest.copy(), "work": c.work.copy()}
+
+    def failure_times(self) -> dict | None:
+        """When each element failed [s], -1 if intact: ``threads`` (P,) and ``cables`` (C,);
+        and ``energy_J``, the elastic energy the failed elements held when they failed [J].
+        None without breakage."""
+        b = self.breakage
+        if b is None:
+            return None
+        return {"threads": b.failure_time.copy(), "cables": b.cable_failure_time.copy(),
+                "energy_J": float(b.energy[0])}
 
     handles_contact = True
     """Whether the engine applies contact with the compiled stage (bullet: PyBullet does)."""

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.breakage import break_cables, break_threads
 from ..kernels.cable import reel
 from ..model.debris import COM, OMEGA, QUAT, VELOCITY, body_origin
 from ..model.net import NodeKind
@@ -152,6 +153,11 @@ class BulletEngine(Engine):
             if self.materials is not None:
                 self._collect_contacts(dt, state.time + (self.steps - first_step) * dt)
             self._read(state)
+            if self.breakage is not None:  # the step's tensions, at its end's positions
+                a, t = self.arrays, state.time + (self.steps - first_step - 1) * dt
+                break_threads(state.position, a.pairs, a.rest, w.tension, a.k_a, a.c_a, a.k_t,
+                              a.c_t, a.k_b, a.c_b, self.breakage, t)
+                break_cables(state.position, a.cables, self.breakage, t)
             if not np.isfinite(state.position).all():
                 break
         if self.debris_body is not None:

@@ -47,10 +47,10 @@ class FastEngine(Engine):
 
     @property
     def free(self) -> bool:
-        """Whether the net is free: on the grid, with no bending, no contact and no cables.
+        """Whether the net is free: on the grid, with no bending, contact, cables or breakage.
         Its steps are then :func:`bulletnet.solver.grid.free_steps` alone."""
         return (self.grid is not None and not self.bending and self.contact_arrays is None
-                and self.arrays.cables is None)
+                and self.arrays.cables is None and self.breakage is None)
 
     @property
     def contact_arrays(self):
@@ -144,7 +144,8 @@ class FastEngine(Engine):
                 taken = integrators.advance(on_grid, self.implicit)(
                     self.bending_every, todo, pos, vel, quat, omega, self.arrays,
                     self.step_work, self.gravity, self.external, dt, self.cg_tolerance,
-                    self.contact_arrays, state.time + done * dt, self.grid, self.views)
+                    self.contact_arrays, state.time + done * dt, self.grid, self.views,
+                    self.breakage)
             if taken < todo:  # the self-contact list is full: grow it, go on
                 self.contact = contact.grow_pair_list(self.contact)
                 a = self.contact.arrays

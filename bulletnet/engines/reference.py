@@ -34,6 +34,9 @@ class ReferenceEngine(Engine):
         if scenario.contact.enabled:
             raise ScenarioError(f"{scenario.source}: the reference engine has no contact; "
                                 "use --engine fast or bullet (or contact.enabled = false)")
+        if scenario.strength.breakage:
+            raise ScenarioError(f"{scenario.source}: the reference engine has no breakage; "
+                                "use --engine fast or bullet (or strength.breakage = false)")
         super().__init__(scenario, model)
         self._solver = None
         self._free = ~model.fixed[:, None]

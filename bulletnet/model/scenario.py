@@ -281,9 +281,10 @@ TECHNORA_BREAKING_STRESS = 3.4e9
 
 @dataclass(frozen=True)
 class Strength:
-    """What each element can carry, measured against (never acting: an element over its
-    strength carries on; docs/strength.md). An element's breaking tension [N] is its breaking
-    stress times its section, pi d^2 / 4, times its knot efficiency where it is knotted."""
+    """What each element can carry (docs/strength.md). An element's breaking tension [N] is
+    its breaking stress times its section, pi d^2 / 4, times its knot efficiency where it is
+    knotted. Measured against unless ``breakage`` is on (an element over its strength then
+    fails for good)."""
 
     thread_breaking_stress: float = _f(TECHNORA_BREAKING_STRESS, "Pa", ">0")
     """Breaking stress of the net's threads [Pa] (Technora: Teijin's datasheet)."""
@@ -298,6 +299,11 @@ class Strength:
     """Breaking stress of the main tether and the bridle's lines [Pa] (Technora)."""
     closing_breaking_stress: float = _f(TECHNORA_BREAKING_STRESS, "Pa", ">0")
     """Breaking stress of the closing cables [Pa] (Technora)."""
+    breakage: bool = _f(False, "-")
+    """Whether an element whose tension reaches its breaking tension fails for good: from
+    that step on it carries no force (its axial and bending springs gone; a closing cable's
+    winch stops). Off: strength is only measured against, and no breakage kernel is
+    compiled."""
 
 
 @dataclass(frozen=True)

@@ -45,6 +45,9 @@ class Recording:
     """Tension at which each thread breaks [N], shape (P,); None in a recording made before
     it was recorded (:func:`bulletnet.analysis.metrics.breaking_tension` then derives it from
     the recording's scene)."""
+    failure_time: np.ndarray | None = None
+    """When each thread failed [s], -1 if intact, shape (P,); None without
+    ``strength.breakage``."""
     debris: dict | None = None
     """Scenes with debris: ``position`` (T, 3) of the body-frame origin [m], ``orientation``
     (T, 4) quaternions x, y, z, w, ``velocity`` (T, 3) [m/s], ``angular_velocity`` (T, 3)
@@ -57,8 +60,8 @@ class Recording:
     """Scenes with a closing mechanism: ``nodes`` (V,) and ``start`` (C + 1,) (each cable's
     polyline of nodes), ``rigidity`` (C,) E A [N], and per frame ``tension`` (T, C) [N],
     ``length`` (T, C) [m], ``rest_length`` (T, C) [m] and the winches' ``work`` (T, C) [J],
-    and ``breaking_tension`` (C,) [N] where recorded (see :mod:`bulletnet.recording.writer`);
-    else None."""
+    and ``breaking_tension`` (C,) [N] where recorded, ``failure_time`` (C,) [s] with
+    breakage (see :mod:`bulletnet.recording.writer`); else None."""
 
     @property
     def nodes_per_side(self) -> int:
@@ -117,6 +120,8 @@ def open_recording(path: str | os.PathLike) -> Recording:
                 stiffness=f["threads/stiffness"][()],
                 breaking_tension=(f["threads/breaking_tension"][()]
                                   if "threads/breaking_tension" in f else None),
+                failure_time=(f["threads/failure_time"][()]
+                              if "threads/failure_time" in f else None),
                 debris=_group(f, "debris", frames),
                 contacts=_group(f, "contacts", frames),
                 cables=_group(f, "cables", frames),

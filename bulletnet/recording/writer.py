@@ -47,6 +47,9 @@ path                      shape         meaning
 /cables/length            (T, C)        length along the cable's polyline [m]
 /cables/rest_length       (T, C)        rest length, shortened by the winch [m]
 /cables/work              (T, C)        work done by the cable's winch so far [J]
+/threads/failure_time     (P,)          when the thread failed, -1 if intact [s]
+                                        (``strength.breakage`` on; written at the end)
+/cables/failure_time      (C,)          when the cable failed, -1 if intact [s]
 ========================  ============  =====================================================
 
 Contact forces are means over the record interval (impulse / interval): an impact lasts
@@ -236,8 +239,10 @@ class Recorder:
             ds.flush()
         self._last_flush = _time.monotonic()
 
-    def close(self, status: str, message: str = "", **attrs) -> Path:
-        """Flush, mark the run with ``status``, close and rename to the final path."""
+    def close(self, status: str, message: str = "", datasets: dict | None = None,
+              **attrs) -> Path:
+        """Flush, mark the run with ``status``, write ``datasets`` (path: (array, units),
+        known only at the end: the failure times), close and rename to the final path."""
         import h5py
 
         assert status in STATUSES
@@ -251,6 +256,8 @@ class Recorder:
             f.attrs["message"] = message
             for key, value in attrs.items():
                 f.attrs[key] = value
+            for name, (data, units) in (datasets or {}).items():
+                f.create_dataset(name, data=data).attrs["units"] = units
         os.replace(self.part_path, self.path)
         return self.path
 

@@ -23,7 +23,7 @@ from ..model.scenario import Scenario, to_toml
 from ..model.state import NetState
 from ..recording.writer import Recorder
 from .compile_ahead import compile_ahead
-from .observers import Observer, Outcome, Profiling, Recording, Run
+from .observers import Breakage, Observer, Outcome, Profiling, Recording, Run
 from .profiling import Profile
 from .tow import ThrustControl, TowOutcome
 from .winch import WinchControl
@@ -264,6 +264,8 @@ def _observers(scenario: Scenario, model, engine, state: NetState,
             geometry = (outcome.monitor.geometry if outcome is not None else
                         ScoreGeometry.of(model, samples, engine.debris.center_of_mass))
             observers.append(TowOutcome(scenario, geometry, thrust))
+    if engine.breakage is not None:
+        observers.append(Breakage())
     if profile is not None:
         observers.append(Profiling(profile, list(observers)))
     return observers

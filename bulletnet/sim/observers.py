@@ -18,9 +18,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analysis.capture_score import OutcomeMonitor, ScoreGeometry
+from ..analysis.metrics import failures
 from ..engines.base import Engine
 from ..model.debris import QUAT, VELOCITY, body_origin
-from ..model.net import NetModel
+from ..model.net import NetModel, thread_kinds
 from ..model.scenario import Scenario
 from ..model.state import NetState
 from ..recording.writer import Recorder
@@ -84,12 +85,17 @@ class Recording(Observer):
         return False
 
     def finish(self, run: Run, status: str, attrs: dict) -> None:
+        failed = run.engine.failure_times()
+        datasets = {} if failed is None else {"threads/failure_time": (failed["threads"], "s")}
+        if failed is not None and run.model.cable_count:
+            datasets["cables/failure_time"] = (failed["cables"], "s")
         contact = {}
         if run.scenario.contact.enabled:
             first = run.engine.contact_loads()["first_contact"]
             contact = {"first_contact_s": first[0], "first_self_contact_s": first[1]}
         rest = {k: v for k, v in attrs.items() if k != "message"}
-        self.path = self.recorder.close(status, attrs.get("message", ""), **contact, **rest)
+        self.path = self.recorder.close(status, attrs.get("message", ""), datasets, **contact,
+                                        **rest)
 
 
 class Outcome(Observer):
@@ -135,3 +141,15 @@ class Profiling(Observer):
         self.profile.stop()
         if status == "completed":
             self.profile.split = step_split(run.engine, run.state)
+
+
+class Breakage(Observer):
+    """With ``strength.breakage`` on: at the end, what failed into the run's attributes
+    (:func:`~bulletnet.analysis.metrics.failures`: counts, the first failure's time, kind
+    and element, the elastic energy lost [J]); the recorder writes the failure times."""
+
+    def finish(self, run: Run, status: str, attrs: dict) -> None:
+        failed = run.engine.failure_times()
+        attrs.update(failures(failed["threads"], failed["cables"],
+                              thread_kinds(run.model.pairs, run.model.kind),
+                              failed["energy_J"]))

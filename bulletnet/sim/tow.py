@@ -4,7 +4,8 @@
   delay after the frame at which the capture is decided ``captured``) and, as an engine step
   hook, sets the chaser's external force to the profile's mean over the steps to come (the
   fast engine's chunks of ``debris.step``, 1/240 s by default; bullet's steps): the impulse
-  delivered is the profile's to round-off (:mod:`bulletnet.model.thrust`).
+  delivered is the profile's to round-off (:mod:`bulletnet.model.thrust`). With
+  ``strength.breakage`` on, a failed tether thread ends the burn (the chaser is cut loose).
 - :class:`TowOutcome` judges the tow from the burn's start on, frame by frame
   (:class:`~bulletnet.analysis.tow_score.TowMonitor`), and adds its outcome and measures to
   the recording.
@@ -17,6 +18,7 @@ import numpy as np
 from ..analysis.capture_score import OutcomeMonitor, ScoreGeometry, score
 from ..analysis.tow_score import TowMonitor
 from ..model.debris import COM, OMEGA, QUAT, body_origin
+from ..model.net import ElementKind, thread_kinds
 from ..model.thrust import ThrustProfile, axial_mode
 from .observers import Observer, Run
 
@@ -37,6 +39,12 @@ class ThrustControl(Observer):
         """The chaser's node: the tether's far end, the model's last node."""
         self.profile: ThrustProfile | None = None
         """The burn, once started."""
+        self.tether = (np.flatnonzero(thread_kinds(model.pairs, model.kind)
+                                      == ElementKind.TETHER)
+                       if engine.breakage is not None else None)
+        """The main tether's threads (with ``strength.breakage`` on; None without): once one
+        has failed the chaser is cut loose and the burn ends (no thrust from the step
+        hook after)."""
 
     def start(self, run: Run) -> None:
         if self.rules.trigger == "time":
@@ -48,7 +56,10 @@ class ThrustControl(Observer):
 
     def _apply(self, engine) -> None:
         if self.profile is not None:
-            engine.external[self.chaser] = self.profile.mean(*engine.span) * self.direction
+            cut = self.tether is not None and bool((engine.breakage.failure_time[
+                self.tether] >= 0).any())
+            engine.external[self.chaser] = (0.0 if cut else  # a failed tether ends the burn
+                                            self.profile.mean(*engine.span) * self.direction)
 
     def frame(self, run: Run) -> bool:
         if (self.profile is None and self.capture is not None

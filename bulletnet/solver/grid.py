@@ -47,6 +47,7 @@ from ..kernels.bending import (
     relative_rotation_vector,
     transverse_force,
 )
+from ..kernels.breakage import fail_thread
 from ..kernels.cable import (
     CableArrays,
     add_cable_blocks,
@@ -650,3 +651,45 @@ def bending(grid, views, torque):
     p = grid.o_bend
     bending_forces(views.position, views.velocity, views.quat, views.omega, grid.o_pairs,
                    grid.o_rest_axis, p[0], p[1], p[2], p[3], views.bend, torque, grid.o_shear)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def break_threads(grid, views, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, breakage, t):
+    """Breakage on the grid (:mod:`bulletnet.kernels.breakage`): every intact thread whose
+    tension of the step from ``t`` [s] reached its breaking tension fails. A grid thread's
+    tension is the length of its T e (th, tv: the step's own, to round-off), another
+    thread's its o_tension. A failed thread's parameters are zeroed both in the grid's rows
+    (k, c and the bending springs) and in the model's pair-list arrays ``pairs`` (P, 2),
+    ``rest`` [m], ``k_a`` .. ``c_b`` (P,) (which the recorded tensions read), by
+    :func:`~bulletnet.kernels.breakage.fail_thread` at the rows' positions. Nothing without
+    breakage (``breakage`` None)."""
+    if breakage is None:
+        return
+    ns, limit, failed = grid.ns, breakage.limit, breakage.failure_time
+    inner = pairs.shape[0] - grid.o_pairs.shape[0]
+    pos = views.position
+    for p in range(inner):
+        if failed[p] >= 0.0:
+            continue
+        i = pairs[p, 0]
+        across = pairs[p, 1] == i + 1  # h(i), else v(i)
+        e = grid.th if across else grid.tv
+        col = ns + i
+        if np.sqrt(e[0, col] ** 2 + e[1, col] ** 2 + e[2, col] ** 2) < limit[p]:
+            continue
+        fail_thread(p, pos, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, breakage, t)
+        k, c, bend = ((grid.h_k, grid.h_c, grid.h_bend) if across else
+                      (grid.v_k, grid.v_c, grid.v_bend))
+        k[i] = 0.0
+        c[i] = 0.0
+        for r in range(4):
+            bend[r, i] = 0.0
+    for q in range(grid.o_pairs.shape[0]):
+        p = inner + q
+        if failed[p] >= 0.0 or grid.o_tension[q] < limit[p]:
+            continue
+        fail_thread(p, pos, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, breakage, t)
+        grid.o_k[q] = 0.0
+        grid.o_c[q] = 0.0
+        for r in range(4):
+            grid.o_bend[r, q] = 0.0

@@ -38,6 +38,7 @@ from ..kernels.axial import (
     invert3,
 )
 from ..kernels.bending import advance_rotation, bending_forces
+from ..kernels.breakage import break_cables, break_threads
 from ..kernels.cable import (
     CableArrays,
     add_cable_blocks,
@@ -406,13 +407,17 @@ def increment(implicit: bool):
 @functools.cache
 def advance(on_grid: bool, implicit: bool):
     """The compiled loop ``(every, steps, pos, vel, quat, omega, model, work, gravity,
-    external, dt, tol, contact, t0, grid, views)`` of the grid's stencils (``on_grid``) or the
-    pair-list kernels, with implicit Euler (``implicit``: CG to the relative residual ``tol``)
-    or symplectic Euler. It takes up to ``steps`` steps in place on (pos, vel[, quat, omega])
-    from time ``t0`` [s]: the bending forces every ``every`` steps (``quat``, ``omega`` None:
-    no bending); then contact (:func:`bulletnet.solver.contact_stage.contact_stage`; ``contact``
-    None: none); the winches reel the closing cables before each step
-    (:func:`~bulletnet.kernels.cable.reel`; model's cables None: none). Returns the steps
+    external, dt, tol, contact, t0, grid, views, breakage)`` of the grid's stencils
+    (``on_grid``) or the pair-list kernels, with implicit Euler (``implicit``: CG to the
+    relative residual ``tol``) or symplectic Euler. It takes up to ``steps`` steps in place
+    on (pos, vel[, quat, omega]) from time ``t0`` [s]: the bending forces every ``every``
+    steps (``quat``, ``omega`` None: no bending); then contact
+    (:func:`bulletnet.solver.contact_stage.contact_stage`; ``contact`` None: none); the
+    winches reel the closing cables before each step (:func:`~bulletnet.kernels.cable.reel`;
+    model's cables None: none); after each step the
+    elements whose tension reached their breaking tension fail
+    (:mod:`bulletnet.kernels.breakage`; ``breakage`` None: none, nothing compiled; the
+    model's thread arrays k_a .. c_b must then be writable). Returns the steps
     taken: fewer only if the self-contact list must grow first (the caller grows it and
     continues). The caller checks the result for non-finite values; a diverging chunk is at
     most one record interval. The bending springs, evaluated every ``every`` steps, act as
@@ -434,7 +439,7 @@ def advance(on_grid: bool, implicit: bool):
 
     @nb.njit(cache=True, error_model="numpy")
     def advance_loop(every, steps, pos, vel, quat, omega, model, work, gravity, external, dt,
-                     tol, contact, t0, grid, views):
+                     tol, contact, t0, grid, views, breakage):
         n = pos.shape[0]
         mass, fixed, radius = model.mass, model.fixed, model.radius
         torque, dv, gain = work.torque, work.dv, work.gain
@@ -481,6 +486,16 @@ def advance(on_grid: bool, implicit: bool):
                             for a in range(3):
                                 omega[i, a] += weight * gain[i] * torque[i, a]
                 pending += 1
+            if breakage is not None:  # at the step's end, from the step's own tensions
+                if on_grid:
+                    grid_kernels.break_threads(grid, views, model.pairs, model.rest,
+                                               model.k_a, model.c_a, model.k_t, model.c_t,
+                                               model.k_b, model.c_b, breakage, t0 + k * dt)
+                else:
+                    break_threads(pos, model.pairs, model.rest, work.tension, model.k_a,
+                                  model.c_a, model.k_t, model.c_t, model.k_b, model.c_b,
+                                  breakage, t0 + k * dt)
+                break_cables(pos, model.cables, breakage, t0 + k * dt)
             taken += 1
         if quat is not None:
             if pending > 0:

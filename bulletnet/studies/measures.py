@@ -85,6 +85,38 @@ def overloaded(rec: Recording) -> bool:
     return overloaded_elements(rec) > 0
 
 
+def broken_threads(rec: Recording) -> int | None:
+    """Threads that failed in a run with ``strength.breakage`` on [-]
+    (:func:`bulletnet.analysis.metrics.breakage`); None without breakage."""
+    from ..analysis.metrics import breakage
+
+    doc = breakage(rec)
+    return None if doc is None else doc["broken_threads"]
+
+
+def broken_cables(rec: Recording) -> int | None:
+    """Closing cables that failed (``strength.breakage`` on) [-]; None without breakage."""
+    from ..analysis.metrics import breakage
+
+    doc = breakage(rec)
+    return None if doc is None else doc["broken_cables"]
+
+
+def first_break(rec: Recording) -> float | None:
+    """When the first element failed (``strength.breakage`` on) [s]; None if none did."""
+    from ..analysis.metrics import breakage
+
+    doc = breakage(rec)
+    return None if doc is None or doc["first_break_s"] < 0 else doc["first_break_s"]
+
+
+def any_broken(rec: Recording) -> bool | None:
+    """Whether any element failed (``strength.breakage`` on; a study's report gives the
+    probability of it); None without breakage."""
+    threads, cables = broken_threads(rec), broken_cables(rec)
+    return None if threads is None else threads + cables > 0
+
+
 Measures = dict[str, Callable[[Recording], float | int | str | bool | None]]
 """Summary measures of a recording: column name (with its unit) -> function of the recording;
 None where a run never reaches it."""
@@ -97,6 +129,15 @@ STRENGTH_MEASURES: Measures = {
 }
 """Summary measures of every recording's safety margins: the least safety factor [-], the
 elements that reached their breaking tension [-] and whether any did (true/false)."""
+
+BREAKAGE_MEASURES: Measures = {
+    "broken_threads": broken_threads,
+    "broken_cables": broken_cables,
+    "first_break_s": first_break,
+    "any_broken": any_broken,
+}
+"""Summary measures of a run with ``strength.breakage`` on: threads and cables that failed
+[-], the first failure [s] (None: none) and whether any element failed (true/false)."""
 
 SUMMARY_MEASURES: Measures = {
     "final_mouth_area_m2": final_mouth_area,
@@ -123,7 +164,9 @@ debris at the end), the outcome (None until the recording keeps one) and
 
 def summary_measures(scenario) -> Measures:
     """The measures that fit a scene: :data:`CAPTURE_MEASURES` with debris and contact, else
-    :data:`SUMMARY_MEASURES`."""
-    return CAPTURE_MEASURES if scenario.debris.asset and scenario.contact.enabled \
+    :data:`SUMMARY_MEASURES`; with ``strength.breakage`` on, :data:`BREAKAGE_MEASURES`
+    too."""
+    measures = CAPTURE_MEASURES if scenario.debris.asset and scenario.contact.enabled \
         else SUMMARY_MEASURES
+    return {**measures, **BREAKAGE_MEASURES} if scenario.strength.breakage else measures
 
