@@ -233,15 +233,18 @@ def _tow(plt, recs, styles):
                 ax.axvline(when, ls=style, lw=0.8, color="0.3")
             axes[1].annotate(f" {outcome} at {when:.1f} s", (when, axes[1].get_ylim()[1]),
                              fontsize=7, va="top")
-    axes[0].set_ylabel("force [N]")
-    axes[1].set_ylabel("chaser to debris\ncentre of mass [m]")
-    axes[2].set_ylabel("enclosed fraction [-]")
-    axes[3].set_ylabel("debris angular\nspeed [deg/s]")
-    axes[3].set_xlabel("time [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3)
+    _time_axes(axes, ("force [N]", "chaser to debris\ncentre of mass [m]",
+                      "enclosed fraction [-]", "debris angular\nspeed [deg/s]"))
     axes[0].legend(fontsize=7)
     return fig
+
+
+def _time_axes(axes, ylabels) -> None:
+    """Label stacked panels sharing a time axis [s] and grid them."""
+    for ax, label in zip(axes, ylabels, strict=True):
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("time [s]")
 
 
 def _capture_series(plt, recs, styles):
@@ -261,12 +264,9 @@ def _capture_series(plt, recs, styles):
             axes[2].axvline(judged.time, ls=style, lw=0.8, color="0.3")
             axes[2].annotate(f" {judged.outcome} at {judged.time:.1f} s",
                              (judged.time, 0.98 - 0.1 * row), fontsize=7, va="top")
-    axes[0].set_ylabel("nodes touching the debris [-]")
-    axes[1].set_ylabel("wrap [-]\n(fraction of directions\ncovered by the net)")
-    axes[2].set_ylabel("capture score [-]")
-    axes[2].set_xlabel("time [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3)
+    _time_axes(axes, ("nodes touching the debris [-]",
+                      "wrap [-]\n(fraction of directions\ncovered by the net)",
+                      "capture score [-]"))
     axes[0].legend(fontsize=8)
     axes[2].legend(fontsize=7, loc="center right")
     return fig
