@@ -258,22 +258,28 @@ def test_spinning_body_keeps_its_inertial_spin_in_the_rotating_frame():
 
 
 def thrust_run(profile, integrator="symplectic_euler", t_end=2.0, frames=2000, burn=0.0,
-               force=10.0, orbit=False):
-    """A chaser of 1 kg on a taut elastic tether (k = 100 N/m, undamped) to a point mass of
-    3 kg, at rest, thrusting ``force`` [N] away from it from t = 0 with ``profile``: the
-    times [s] (T,), the tether tensions [N] (T,), the final state, the burn and the mode."""
+               force=10.0, orbit=False, slack=0.0, zeta=0.0, **thrust):
+    """A chaser of 1 kg on a taut elastic tether (k = 100 N/m, undamped, or of damping ratio
+    ``zeta`` in the pair's axial mode) to a point mass of 3 kg, at rest, thrusting
+    ``force`` [N] away from it from t = 0 with ``profile`` (and the other ``thrust`` keys);
+    ``slack`` [m]: the chaser starts that much closer, the tether slack: the times [s] (T,),
+    the tether tensions [N] (T,), the final state and the control."""
     m_d, m_c, length = 3.0, 1.0, 2.0
     area = 100.0 * length / 1e9  # E A / L = 100 N/m with E = 1 GPa
+    mu = m_c * m_d / (m_c + m_d)
+    omega = math.sqrt(100.0 / mu)  # the scene's damping ratio is the threads' law's
     s = scene(tether__enabled=True, tether__length=length, tether__young_modulus=1e9,
-              tether__diameter=2 * math.sqrt(area / math.pi), tether__damping_ratio=0.0,
+              tether__diameter=2 * math.sqrt(area / math.pi),
+              tether__damping_ratio=zeta * 100.544 / omega,
               tether__chaser_mass=m_c, thrust__enabled=True, thrust__force=force,
               thrust__direction=[1.0, 0.0, 0.0], thrust__profile=profile,
               thrust__rise_time=0.3, thrust__burn_time=burn, thrust__trigger="time",
               simulation__integrator=integrator, simulation__dt=1e-4, scene__duration=t_end,
-              orbit__enabled=orbit, orbit__mean_motion=N_FAST)
-    model = point_masses([m_d, m_c], [(0, 1)], [length], [100.0], [0.0])
+              orbit__enabled=orbit, orbit__mean_motion=N_FAST,
+              **{f"thrust__{k}": v for k, v in thrust.items()})
+    model = point_masses([m_d, m_c], [(0, 1)], [length], [100.0], [2 * zeta * mu * omega])
     engine = make_engine(s, model)
-    state = NetState(0.0, np.array([[0.0, 0, 0], [length, 0, 0]]), np.zeros((2, 3)))
+    state = NetState(0.0, np.array([[0.0, 0, 0], [length - slack, 0, 0]]), np.zeros((2, 3)))
     control = ThrustControl(s, model, engine, None)
     control.start(Run(s, model, engine, state))
     times = np.linspace(0.0, t_end, frames + 1)
@@ -300,6 +306,43 @@ def test_step_thrust_on_a_tethered_pair(integrator):
     assert tension[whole].mean() == pytest.approx(mean, rel=1e-2)
     up = np.nonzero((tension[:-1] < mean) & (tension[1:] >= mean))[0]
     assert 2 * math.pi / np.diff(times[up]).mean() == pytest.approx(omega, rel=1e-2)
+
+
+@pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
+def test_pretension_takes_up_the_slack_before_the_shaped_step(integrator):
+    # Reference: a step F on the chaser (m_c) of a tether slack by d: it moves d freely and
+    # meets the tether at v = sqrt(2 F d / m_c); the undamped pair then oscillates about
+    # P = F m_d / M, T(t) = P (1 - cos w t) + v mu w sin w t (mu = m_c m_d / M), so the peak
+    # is P + sqrt(P^2 + (v mu w)^2): 19.0 N for F = 10 N, d = 5 cm. With a pretension
+    # F_p = 1 N for 4 s first and a damped tether (zeta = 0.2 in the axial mode) the slack is
+    # taken up and the bounces die out (e^(-zeta w 3.7 s) = 2e-4); the ZV-shaped rise of the
+    # rest then acts on a taut pair at rest, mu x'' + c x' + k x = P(t), whose tension
+    # k x + c x' answers a unit step with 1 - e^(-s t) (cos w_d t - s / w_d sin w_d t)
+    # (s = zeta w, w_d = w sqrt(1 - zeta^2)): the shaped rise's tension is the sum of that
+    # over the shaper's steps (the damper's share lifts it 2.6 % over P once). The peak
+    # within 1 %, the shaped rise's tension at every frame within 1e-3 P (first order at
+    # w dt = 1.2e-3).
+    m_d, m_c, gap, force, low, zeta = 3.0, 1.0, 0.05, 10.0, 1.0, 0.2
+    mass, mu = m_d + m_c, m_c * m_d / (m_d + m_c)
+    w = math.sqrt(100.0 / mu)
+    v = math.sqrt(2 * force * gap / m_c)
+    mean = force * m_d / mass
+    _, stepped, _, _ = thrust_run("step", integrator, t_end=1.5, frames=1500, slack=gap)
+    times, shaped, _, control = thrust_run("zv", integrator, t_end=6.0, frames=6000,
+                                           slack=gap, zeta=zeta, pretension=low,
+                                           pretension_time=4.0)
+    assert control.mode.zeta == pytest.approx(zeta, rel=1e-12)
+    assert stepped.max() == pytest.approx(mean + math.hypot(mean, v * mu * w), rel=1e-2)
+    profile, sigma, w_d = control.profile, zeta * w, w * math.sqrt(1 - zeta**2)
+    assert profile.times[0] == 0.0 and profile.times[1] == 4.0  # the low step, the ZV rise
+    t = times[times >= 4.0][:, None] - profile.times[None, 1:]
+    unit = np.where(t >= 0, 1 - np.exp(-sigma * t) * (np.cos(w_d * t)
+                                                      - sigma / w_d * np.sin(w_d * t)), 0.0)
+    expected = low * m_d / mass + (mean - low * m_d / mass) * unit @ (
+        profile.amplitudes[1:] / profile.amplitudes[1:].sum())
+    assert expected.max() > 1.02 * mean
+    assert np.abs(shaped[times >= 4.0] - expected).max() < 1e-3 * mean
+    assert shaped[times < 4.0].max() < 0.5 * mean  # the pretension's gentle take-up
 
 
 def jacobi_energy(state, masses, k, rest, n):

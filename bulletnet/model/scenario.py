@@ -357,8 +357,14 @@ class Thrust:
     rise_time: float = _f(10.0, "s", ">0")
     """Time over which the ``ramp`` profile rises to full thrust (and falls) [s]."""
     burn_time: float = _f(0.0, "s", ">=0")
-    """Length of the burn [s], from its start to the start of its fall (shaped as its
-    rise); 0: to the end of the run."""
+    """Length of the burn [s], from the start of its rise (after any pretension) to the
+    start of its fall (shaped as its rise); 0: to the end of the run."""
+    pretension: float = _f(0.0, "N", ">=0")
+    """A low thrust [N] (below ``force``) from the burn's start for ``pretension_time``,
+    before the shaped rise to ``force``: it takes up a slack tether gently, so that the
+    shaped step starts on a taut one (docs/tow.md); 0: none."""
+    pretension_time: float = _f(0.0, "s", ">=0")
+    """How long the ``pretension`` thrust acts before the rise to ``force`` [s]."""
     trigger: str = _f("captured", "-", "choice", THRUST_TRIGGERS)
     """When the burn starts: at ``trigger_time`` (``time``), or ``trigger_delay`` after the
     frame at which the capture's outcome is decided ``captured`` (``captured``; needs
@@ -619,6 +625,9 @@ def _check_tow(s: Scenario) -> None:
                             "thrust; use --engine fast or bullet")
     if th.enabled and math.hypot(*th.direction) == 0:
         raise ScenarioError(f"{s.source}: thrust.direction: expected a nonzero direction [-]")
+    if th.enabled and th.pretension >= th.force:
+        raise ScenarioError(f"{s.source}: thrust.pretension: expected less than thrust.force "
+                            f"({th.force:g} N), got {th.pretension:g} N")
     if th.enabled and th.trigger == "captured" and (
             not s.outcome.enabled or s.outcome.stop_when_decided):
         raise ScenarioError(f"{s.source}: thrust.trigger: 'captured' needs outcome.enabled "

@@ -1,10 +1,13 @@
 """The chaser's thrust profile and the tether's axial mode it is shaped for.
 
 A burn is a unit step (or a linear ramp of ``rise_time``) at its start, minus the same at
-its end (``burn_time`` later, if given), convolved with an input shaper: the step itself, or
-the zero-vibration (ZV) or zero-vibration-derivative (ZVD) shaper of the tow's axial mode
-(Singer & Seering 1990). For a mode of undamped frequency w [rad/s] and damping ratio z,
-with K = exp(-z pi / sqrt(1 - z^2)) and T the damped half period pi / (w sqrt(1 - z^2)):
+its end (``burn_time`` later, if given), convolved with an input shaper (with a
+``pretension`` F_p: a step of F_p at the start, the rise of the rest, F - F_p, shaped,
+``pretension_time`` later, and the whole thrust's fall shaped ``burn_time`` after that): the
+step itself, or the zero-vibration (ZV) or zero-vibration-derivative (ZVD) shaper of the
+tow's axial mode (Singer & Seering 1990). For a mode of undamped frequency w [rad/s] and
+damping ratio z, with K = exp(-z pi / sqrt(1 - z^2)) and T the damped half period pi / (w
+sqrt(1 - z^2)):
 
 - ZV: impulses 1 / (1 + K), K / (1 + K) at 0, T;
 - ZVD: impulses 1 / (1 + K)^2, 2 K / (1 + K)^2, K^2 / (1 + K)^2 at 0, T, 2 T.
@@ -79,12 +82,17 @@ class ThrustProfile:
     ``[thrust]``), shaped for an axial mode of ``omega`` [rad/s] and ``zeta`` [-]."""
 
     def __init__(self, rules: Thrust, start: float, omega: float, zeta: float):
-        times, amplitudes = shaper(rules.profile, omega, zeta)
-        times = times + start
-        if rules.burn_time > 0:
-            times = np.concatenate([times, times + rules.burn_time])
-            amplitudes = np.concatenate([amplitudes, -amplitudes])
-        self.times, self.amplitudes = times, amplitudes
+        shape_times, shape = shaper(rules.profile, omega, zeta)
+        rise = start + rules.pretension_time if rules.pretension > 0 else start
+        low = rules.pretension / rules.force
+        times, amplitudes = [shape_times + rise], [(1.0 - low) * shape]
+        if rules.pretension > 0:  # the low step first, then the shaped rise to full thrust
+            times.insert(0, np.array([start]))
+            amplitudes.insert(0, np.array([low]))
+        if rules.burn_time > 0:  # the whole thrust falls, shaped
+            times.append(shape_times + rise + rules.burn_time)
+            amplitudes.append(-shape)
+        self.times, self.amplitudes = np.concatenate(times), np.concatenate(amplitudes)
         """Starts [s] and amplitudes [-] of the unit steps (or ramps) making the profile."""
         self.rise = rules.rise_time if rules.profile == "ramp" else 0.0
         """Rise of each step [s] (0: a step)."""
