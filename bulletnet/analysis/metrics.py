@@ -32,7 +32,9 @@ Strength (every recording; docs/strength.md), over the elements: the threads (ne
 corner threads, a bridle's lines, the tether's, by their ends' kinds:
 :func:`bulletnet.model.net.thread_kinds`), then the closing cables:
 
-- utilisation: tension over breaking tension, per frame and element (:func:`utilisation`);
+- utilisation: tension over breaking tension, per frame and element (:func:`utilisation`),
+  from each element's largest tension since the frame before where the recording has it
+  (:func:`peak_tension`);
 - the least safety factor of the run, breaking tension over the largest tension, with the
   element, its end nodes and their positions, and the time (:func:`safety`), overall and
   for each kind of element; the elements that reached their breaking tension;
@@ -42,8 +44,12 @@ corner threads, a bridle's lines, the tether's, by their ends' kinds:
   and element, and the elastic energy lost at the failures (:func:`breakage`, from the
   recorded failure times, to the step).
 
-All from the recorded frames: a peak between two frames is missed (a higher record rate
-resolves it).
+All from the recorded frames. A recording of the fast or bullet engine carries each
+element's largest tension in every step since the frame before (``peak_tension``), and the
+strength measures read it: they see every step's tension whatever the record rate, and the
+time of a peak is the frame that ends the interval it was reached in. In a recording made
+before it was recorded (or of the reference engine) they read the frames' own tensions,
+and a peak between two frames is missed (a higher record rate resolves it).
 """
 
 from __future__ import annotations
@@ -419,10 +425,29 @@ def element_tension(rec: Recording) -> np.ndarray:
                                                              rec.cables["tension"]])
 
 
+def has_peaks(rec: Recording) -> bool:
+    """Whether the recording carries each element's largest tension between frames
+    (``/threads/peak_tension``, and ``/cables/peak_tension`` with cables)."""
+    return rec.peak_tension is not None and (rec.cables is None
+                                             or "peak_tension" in rec.cables)
+
+
+def peak_tension(rec: Recording) -> np.ndarray:
+    """Each element's largest tension over the interval ending at each frame [N], shape
+    (T, P + C): the threads', then the closing cables' (the larger of the frame's tension
+    and every step's since the frame before; the first frame's own). A recording without
+    it (:func:`has_peaks`): the frames' tensions (:func:`element_tension`)."""
+    if not has_peaks(rec):
+        return element_tension(rec)
+    return (rec.peak_tension if rec.cables is None
+            else np.hstack([rec.peak_tension, rec.cables["peak_tension"]]))
+
+
 def utilisation(rec: Recording) -> np.ndarray:
-    """Tension over breaking tension of each element at each frame [-], shape (T, P + C)
-    (1: the element is at its strength)."""
-    return element_tension(rec) / breaking_tension(rec)
+    """Largest tension over breaking tension of each element in the interval ending at each
+    frame (:func:`peak_tension`; a recording without peaks: at each frame) [-], shape
+    (T, P + C) (1: the element is at its strength)."""
+    return peak_tension(rec) / breaking_tension(rec)
 
 
 def element(rec: Recording, index: int, frame: int | None = None) -> dict:
@@ -452,8 +477,11 @@ def safety(rec: Recording) -> dict:
     the tension 0, if no element was ever taut); the same for each kind of element
     (``by_kind``, with its ``elements`` count); the ``overloaded_elements`` (at or over
     their breaking tension in some frame), the ``first_overload_s`` [s] (None: none was)
-    and the highest utilisation at each frame (``max_utilisation``, (T,))."""
-    tension, strength, kinds = element_tension(rec), breaking_tension(rec), element_kinds(rec)
+    and the highest utilisation at each frame (``max_utilisation``, (T,)). The tensions are
+    the largest since the frame before where the recording has them (:func:`peak_tension`;
+    ``between_frames`` True), and a time is then the frame that ends the interval; else the
+    frames' own."""
+    tension, strength, kinds = peak_tension(rec), breaking_tension(rec), element_kinds(rec)
     util = tension / strength
 
     def least(columns: np.ndarray) -> dict:
@@ -471,7 +499,8 @@ def safety(rec: Recording) -> dict:
     over = util >= 1.0
     by_kind = {ELEMENT_NAMES[kind]: {"elements": int(columns.size), **least(columns)}
                for kind in ElementKind if (columns := np.flatnonzero(kinds == kind)).size}
-    return {**least(np.arange(kinds.size)), "by_kind": by_kind,
+    return {**least(np.arange(kinds.size)), "between_frames": has_peaks(rec),
+            "by_kind": by_kind,
             "overloaded_elements": int(over.any(axis=0).sum()),
             "first_overload_s": float(rec.time[np.argmax(over.any(axis=1))])
             if over.any() else None,
@@ -482,8 +511,11 @@ def snap_loads(rec: Recording) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Slack -> taut events of each element (taut at a frame, slack at the frame before; an
     element taut at the first frame has had none yet) [-], shape (P + C,); the peak tension
     of each element over the taut spells such events begin [N], shape (P + C,) (0 without
-    one); and the frame of that peak [-], shape (P + C,)."""
-    tension = element_tension(rec)
+    one); and the frame of that peak [-], shape (P + C,). From the largest tensions between
+    frames where the recording has them (:func:`peak_tension`): an element is then taut in
+    an interval if it was in any step of it, and an event is an interval with tension after
+    one slack throughout."""
+    tension = peak_tension(rec)
     taut = tension > 0
     start = taut & ~np.vstack([taut[:1], taut[:-1]])
     in_spell = taut & (np.cumsum(start, axis=0) > 0)

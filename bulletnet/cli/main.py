@@ -809,6 +809,9 @@ def strength_text(doc: dict) -> list[str]:
         lines.append(f"largest snap load: {snap['tension_N']:.4g} N (utilisation "
                      f"{snap['utilisation']:.3g}) in {_where(snap)}; "
                      f"{doc['snap_events']} slack -> taut events in all")
+    lines.append("tensions: the largest of every step between frames" if doc["between_frames"]
+                 else "tensions: the frames' own (a recording without peak tensions: a peak "
+                 "between frames is missed)")
     return lines + breakage_text(doc)
 
 

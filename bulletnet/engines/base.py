@@ -11,6 +11,8 @@ import numpy as np
 from ..kernels.breakage import BreakageArrays, breaking_arrays
 from ..kernels.cable import CableArrays, cable_arrays
 from ..kernels.orbit import OrbitArrays, orbit_arrays
+from ..kernels.peaks import PeakArrays, peak_arrays
+from ..kernels.peaks import reset as reset_peaks
 from ..model.builder import scene_debris
 from ..model.net import NetModel
 from ..model.scenario import Scenario
@@ -93,6 +95,9 @@ class Engine(ABC):
             a = self.arrays
             self.arrays = a._replace(**{name: getattr(a, name).copy() for name in (
                 "k_a", "c_a", "k_t", "c_t", "k_b", "c_b")})
+        self.peaks: PeakArrays = peak_arrays(model.thread_count, model.cable_count)
+        """Each element's largest tension in the steps since :meth:`peak_tensions` last read
+        them (:mod:`bulletnet.kernels.peaks`)."""
         self.work = integrators.workspace(model.node_count, model.thread_count)
         self._loads_work = integrators.workspace(model.node_count, model.thread_count)
         """Scratch space of :meth:`thread_loads` (the stepping workspace keeps its warm start)."""
@@ -149,6 +154,18 @@ class Engine(ABC):
         c = self.cables
         return {"tension": c.tension.copy(), "length": c.length.copy(),
                 "rest_length": c.rest.copy(), "work": c.work.copy()}
+
+    def peak_tensions(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each thread's (P,) and each closing cable's (C,) largest tension [N] in the steps
+        taken since the last call (0 if none: an engine that keeps no peaks, or no step), the
+        tension each step computed its forces from; resets them."""
+        threads, cables = self._thread_peaks(), self.peaks.cable.copy()
+        reset_peaks(self.peaks)
+        return threads, cables
+
+    def _thread_peaks(self) -> np.ndarray:
+        """Each thread's largest tension since the last reset [N], shape (P,)."""
+        return self.peaks.thread.copy()
 
     def failure_times(self) -> dict | None:
         """When each element failed [s], -1 if intact: ``threads`` (P,) and ``cables`` (C,);

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..kernels.breakage import break_cables, break_threads
 from ..kernels.cable import reel
+from ..kernels.peaks import track_cables, track_threads
 from ..model.debris import COM, OMEGA, QUAT, VELOCITY, body_origin
 from ..model.net import NodeKind
 from ..model.state import NetState
@@ -134,6 +135,8 @@ class BulletEngine(Engine):
             weight = integrators.bending_weight(self.bending, self.bending_every, w)
             increment(weight, state.position, state.velocity, quat, omega, self.arrays, w,
                       self.gravity, self.external, dt, self.cg_tolerance)
+            track_threads(w.tension, self.peaks, 0)  # the step's own tensions
+            track_cables(self.arrays.cables, self.peaks)
             force = w.dv * mass_over_dt
             for body, f, x in zip(self.bodies, force.tolist(), state.position.tolist(),
                                   strict=True):

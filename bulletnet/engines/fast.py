@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.axial import axial_forces
+from ..kernels.peaks import peak_arrays
 from ..model.debris import COM, OMEGA, QUAT, VELOCITY
 from ..model.state import NetState
 from ..solver import contact_stage as contact
@@ -39,6 +40,10 @@ class FastEngine(Engine):
         self.step_work = self.work._replace(dv=self.views.dv) if use_grid else self.work
         """The workspace the steps use (on the grid: its velocity increment, which the
         contact stage reads, is the grid's rows)."""
+        if use_grid:  # the grid threads' running maxima in rows laid out as the grid's
+            self.peaks = peak_arrays(model.thread_count, model.cable_count,
+                                     self.grid.th.shape[1])
+            self._peak_columns = grid_kernels.peak_columns(self.grid, model.pairs)
 
     @property
     def kernels(self) -> str:
@@ -66,6 +71,15 @@ class FastEngine(Engine):
             return (state.position, state.velocity, *self.rotations(state))
         v = self.views
         return (v.position, v.velocity, *((v.quat, v.omega) if self.bending else (None, None)))
+
+    def _thread_peaks(self) -> np.ndarray:
+        """Each thread's largest tension since the last reset [N], shape (P,): on the grid a
+        grid thread's is the square root of its largest squared |T e|."""
+        out = self.peaks.thread.copy()
+        if self.grid is not None:
+            rows, columns = self._peak_columns
+            out[:rows.size] = np.sqrt(self.peaks.rows[rows, columns])
+        return out
 
     def kernel_groups(self, state: NetState) -> dict[str, list[tuple]]:
         """The compiled kernels the loop of this engine calls, by group, each as (dispatcher,
@@ -137,7 +151,7 @@ class FastEngine(Engine):
             if free:
                 grid_kernels.free_steps(self.implicit)(self.grid, self.views, todo, dt,
                                                        self.cg_tolerance,
-                                                       self.work.cg_iterations)
+                                                       self.work.cg_iterations, self.peaks)
                 self.step_work.step_count[0] += todo
                 taken = todo
             else:
@@ -145,7 +159,7 @@ class FastEngine(Engine):
                     self.bending_every, todo, pos, vel, quat, omega, self.arrays,
                     self.step_work, self.gravity, self.external, dt, self.cg_tolerance,
                     self.contact_arrays, state.time + done * dt, self.grid, self.views,
-                    self.breakage)
+                    self.breakage, self.peaks)
             if taken < todo:  # the self-contact list is full: grow it, go on
                 self.contact = contact.grow_pair_list(self.contact)
                 a = self.contact.arrays

@@ -45,6 +45,10 @@ class Recording:
     """Tension at which each thread breaks [N], shape (P,); None in a recording made before
     it was recorded (:func:`bulletnet.analysis.metrics.breaking_tension` then derives it from
     the recording's scene)."""
+    peak_tension: np.ndarray | None = None
+    """Each thread's largest tension since the frame before [N], shape (T, P): the larger of
+    its tension at the frame and of every step's in between; None in a recording made
+    before it was recorded."""
     failure_time: np.ndarray | None = None
     """When each thread failed [s], -1 if intact, shape (P,); None without
     ``strength.breakage``."""
@@ -60,7 +64,8 @@ class Recording:
     """Scenes with a closing mechanism: ``nodes`` (V,) and ``start`` (C + 1,) (each cable's
     polyline of nodes), ``rigidity`` (C,) E A [N], and per frame ``tension`` (T, C) [N],
     ``length`` (T, C) [m], ``rest_length`` (T, C) [m] and the winches' ``work`` (T, C) [J],
-    and ``breaking_tension`` (C,) [N] where recorded, ``failure_time`` (C,) [s] with
+    and ``breaking_tension`` (C,) [N] and ``peak_tension`` (T, C) [N] where recorded,
+    ``failure_time`` (C,) [s] with
     breakage (see :mod:`bulletnet.recording.writer`); else None."""
 
     @property
@@ -120,6 +125,8 @@ def open_recording(path: str | os.PathLike) -> Recording:
                 stiffness=f["threads/stiffness"][()],
                 breaking_tension=(f["threads/breaking_tension"][()]
                                   if "threads/breaking_tension" in f else None),
+                peak_tension=(f["threads/peak_tension"][:frames]
+                              if "threads/peak_tension" in f else None),
                 failure_time=(f["threads/failure_time"][()]
                               if "threads/failure_time" in f else None),
                 debris=_group(f, "debris", frames),

@@ -19,6 +19,9 @@ path                      shape         meaning
 /threads/breaking_tension (P,)          tension at which the thread breaks ([strength]) [N]
 /threads/tension          (T, P)        axial tension, 0 when slack [N]
 /threads/shear            (T, P)        transverse (shear) force magnitude, 0 without bending [N]
+/threads/peak_tension     (T, P)        largest tension since the frame before: the frame's
+                                        own and every step's in between [N] (the fast and
+                                        bullet engines; recordings before it lack it)
 /nodes/orientation        (T, N, 4)     unit quaternions x, y, z, w [-] (bending only)
 /nodes/angular_velocity   (T, N, 3)     world frame [rad/s] (bending only)
 /debris/position          (T, 3)        world position of the body-frame origin (as the
@@ -44,6 +47,7 @@ path                      shape         meaning
 /cables/rigidity          (C,)          E A [N]
 /cables/breaking_tension  (C,)          tension at which the cable breaks [N]
 /cables/tension           (T, C)        cable tension, 0 when slack [N]
+/cables/peak_tension      (T, C)        largest cable tension since the frame before [N]
 /cables/length            (T, C)        length along the cable's polyline [m]
 /cables/rest_length       (T, C)        rest length, shortened by the winch [m]
 /cables/work              (T, C)        work done by the cable's winch so far [J]
@@ -53,7 +57,11 @@ path                      shape         meaning
 ========================  ============  =====================================================
 
 Contact forces are means over the record interval (impulse / interval): an impact lasts
-microseconds and a sample at the frame time would miss it.
+microseconds and a sample at the frame time would miss it. For the same reason each
+element's largest tension over the interval is recorded beside its tension at the frame
+(``peak_tension``: the larger of the frame's tension and of the tension of every step
+since the frame before, each step's the one it computed its forces from;
+:mod:`bulletnet.kernels.peaks`); the first frame's is its own tension.
 
 Root attributes: ``scenario`` (the TOML as run, overrides applied), ``engine``,
 ``integrator``, ``dt`` [s], ``record_rate`` [Hz], ``bending``, ``status`` (running /
@@ -101,12 +109,13 @@ def _reason(exc: OSError) -> str:
 
 class Recorder:
     """Append frames of a run to an HDF5 file; use as a context manager or call :meth:`close`.
-    The file's folder is created if it does not exist."""
+    The file's folder is created if it does not exist. With ``peaks`` every frame also
+    carries each element's largest tension since the frame before (:meth:`append`)."""
 
     def __init__(self, path: str | os.PathLike, model: NetModel, attrs: dict,
                  oriented: bool = False, flush_interval: float = FLUSH_INTERVAL_S,
                  debris=None, contact: bool = False,
-                 interior_samples: np.ndarray | None = None):
+                 interior_samples: np.ndarray | None = None, peaks: bool = False):
         import h5py
 
         self.path = Path(path)
@@ -159,6 +168,8 @@ class Recorder:
             "tension": growing("threads/tension", (p,), "N"),
             "shear": growing("threads/shear", (p,), "N"),
         }
+        if peaks:
+            self._series["peak_tension"] = growing("threads/peak_tension", (p,), "N")
         if oriented:
             self._series["orientation"] = growing("nodes/orientation", (n, 4), "1")
             self._series["angular_velocity"] = growing("nodes/angular_velocity", (n, 3),
@@ -191,6 +202,9 @@ class Recorder:
                                 ("work", "J")):
                 self._series["cable_" + name] = growing("cables/" + name, (model.cable_count,),
                                                         units)
+            if peaks:
+                self._series["cable_peak_tension"] = growing(
+                    "cables/peak_tension", (model.cable_count,), "N")
         if contact:
             self._series["contact_count"] = growing("contacts/count", (), "1")
             self._series["contact_force"] = growing("contacts/normal_force", (), "N")
@@ -200,11 +214,15 @@ class Recorder:
         self._last_flush = _time.monotonic()
 
     def append(self, state: NetState, tension: np.ndarray, shear: np.ndarray,
-               contacts: dict | None = None, cables: dict | None = None) -> None:
+               contacts: dict | None = None, cables: dict | None = None,
+               peaks: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         """Add one frame: the state, thread tensions and shear forces (P,) [N], the
         contact forces since the last frame (``node_force``, ``self_force`` (N,) [N], as
-        :meth:`bulletnet.engines.base.Engine.contact_loads` gives them) and the closing
-        cables (as :meth:`~bulletnet.engines.base.Engine.cable_loads` gives them)."""
+        :meth:`bulletnet.engines.base.Engine.contact_loads` gives them), the closing
+        cables (as :meth:`~bulletnet.engines.base.Engine.cable_loads` gives them) and, for a
+        recorder with peaks, each thread's (P,) and cable's (C,) largest tension in the steps
+        since the frame before [N] (as :meth:`~bulletnet.engines.base.Engine.peak_tensions`
+        gives them; the larger of them and the frame's own tension is recorded)."""
         values = {"time": state.time, "position": state.position, "velocity": state.velocity,
                   "tension": tension, "shear": shear,
                   "orientation": state.orientation, "angular_velocity": state.angular_velocity}
@@ -222,6 +240,11 @@ class Recorder:
                           contact_self_count=np.count_nonzero(contacts["self_force"]))
         if cables is not None:
             values.update({"cable_" + k: v for k, v in cables.items()})
+        if "peak_tension" in self._series:
+            thread_peaks, cable_peaks = peaks
+            values["peak_tension"] = np.maximum(thread_peaks, tension)
+            if cables is not None:
+                values["cable_peak_tension"] = np.maximum(cable_peaks, cables["tension"])
         for name in self._series:
             self._pending.setdefault(name, []).append(np.array(values[name], dtype=float))
         self.frames += 1

@@ -252,7 +252,7 @@ def _observers(scenario: Scenario, model, engine, state: NetState,
             "bending": scenario.bending.enabled,
             "bulletnet_version": _version(),
         }, oriented=state.oriented, debris=engine.debris, interior_samples=samples,
-            contact=scenario.contact.enabled)))
+            contact=scenario.contact.enabled, peaks=True)))
     outcome = Outcome(scenario, model, engine, samples) if scenario.outcome.enabled else None
     if outcome is not None:
         observers.append(outcome)

@@ -56,6 +56,7 @@ from ..kernels.cable import (
     clear_cable_nodes,
 )
 from ..kernels.orbit import OrbitArrays, clear_orbit_nodes, orbit_forces
+from ..kernels.peaks import track_cables, track_threads
 from ..model.net import NetModel
 from ..model.topology import thread_pairs
 from . import pcg
@@ -585,20 +586,24 @@ def implicit_step(grid, views, dt, tol, iterations):
 
 @functools.cache
 def free_steps(implicit: bool):
-    """The compiled loop ``(grid, views, steps, dt, tol, iterations)`` that takes ``steps``
-    steps of implicit Euler (``implicit``: CG to the relative residual ``tol``, ``iterations``
-    (1,) counting) or of symplectic Euler of a net with no bending, no contact and no cables:
-    the threads, gravity, loads and external forces only. (One compiled loop around the step
-    kernels: no per-step bookkeeping. ``implicit`` is a constant of the loop, so numba prunes
-    the other integrator's branch and compiles only the step in use.)"""
+    """The compiled loop ``(grid, views, steps, dt, tol, iterations, peaks)`` that takes
+    ``steps`` steps of implicit Euler (``implicit``: CG to the relative residual ``tol``,
+    ``iterations`` (1,) counting) or of symplectic Euler of a net with no bending, no contact
+    and no cables: the threads, gravity, loads and external forces only; after each step the
+    threads' largest tensions (:func:`track_peaks`; ``peaks`` None: none, nothing compiled).
+    (One compiled loop around the step kernels: no per-step bookkeeping. ``implicit`` is a
+    constant of the loop, so numba prunes the other integrator's branch and compiles only the
+    step in use.)"""
 
     @nb.njit(cache=True, error_model="numpy", _nrt=False)
-    def free_loop(grid, views, steps, dt, tol, iterations):
+    def free_loop(grid, views, steps, dt, tol, iterations, peaks):
         for _ in range(steps):
             if implicit:
                 implicit_step(grid, views, dt, tol, iterations)
             else:
                 symplectic_step(grid, views, dt, 0.0, False)
+            if peaks is not None:
+                track_peaks(grid, peaks)
 
     return free_loop
 
@@ -693,3 +698,38 @@ def break_threads(grid, views, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, breaka
         grid.o_c[q] = 0.0
         for r in range(4):
             grid.o_bend[r, q] = 0.0
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _square_peaks(tension_e, rows, row, count, ns):
+    """rows[row, Ns + t] <- the larger of it and |T e|^2 [N^2] of column Ns + t of
+    ``tension_e`` (3, Ns + Ns^2), for t < ``count``."""
+    for t in range(count):
+        col = t + ns
+        square = tension_e[0, col] * tension_e[0, col] + tension_e[1, col] * tension_e[1, col] \
+            + tension_e[2, col] * tension_e[2, col]
+        rows[row, col] = max(rows[row, col], square)
+
+
+@nb.njit(cache=True, error_model="numpy", _nrt=False)
+def track_peaks(grid, peaks):
+    """Each element's running maximum of its tension (:mod:`bulletnet.kernels.peaks`) after a
+    step on the grid: a grid thread's squared |T e| (th, tv: the step's own, as
+    :func:`break_threads` reads it) into the peaks' rows, another thread's o_tension and each
+    cable's tension [N] into their places. Nothing without peaks (``peaks`` None)."""
+    if peaks is None:
+        return
+    ns, rows = U(grid.ns), peaks.rows
+    _square_peaks(grid.th, rows, U(0), U(grid.h_rest.shape[0]), ns)
+    _square_peaks(grid.tv, rows, ONE, U(grid.v_rest.shape[0]), ns)
+    track_threads(grid.o_tension, peaks, peaks.thread.shape[0] - grid.o_tension.shape[0])
+    track_cables(grid.cables, peaks)
+
+
+def peak_columns(grid: Grid, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where the grid keeps each grid thread's running maximum in the peaks' rows: (row,
+    column) of the first 2 Ns (Ns - 1) threads of ``pairs`` (P, 2), each shape (2 Ns (Ns -
+    1),) (:func:`track_peaks`)."""
+    inner = pairs.shape[0] - grid.o_pairs.shape[0]
+    i, j = pairs[:inner, 0], pairs[:inner, 1]
+    return np.where(j == i + 1, 0, 1), grid.ns + i

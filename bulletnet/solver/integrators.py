@@ -47,6 +47,7 @@ from ..kernels.cable import (
     reel,
 )
 from ..kernels.orbit import OrbitArrays, orbit_forces
+from ..kernels.peaks import track_cables, track_threads
 from ..model.net import NetModel
 from . import grid as grid_kernels
 from . import pcg
@@ -407,7 +408,7 @@ def increment(implicit: bool):
 @functools.cache
 def advance(on_grid: bool, implicit: bool):
     """The compiled loop ``(every, steps, pos, vel, quat, omega, model, work, gravity,
-    external, dt, tol, contact, t0, grid, views, breakage)`` of the grid's stencils
+    external, dt, tol, contact, t0, grid, views, breakage, peaks)`` of the grid's stencils
     (``on_grid``) or the pair-list kernels, with implicit Euler (``implicit``: CG to the
     relative residual ``tol``) or symplectic Euler. It takes up to ``steps`` steps in place
     on (pos, vel[, quat, omega]) from time ``t0`` [s]: the bending forces every ``every``
@@ -417,7 +418,9 @@ def advance(on_grid: bool, implicit: bool):
     model's cables None: none); after each step the
     elements whose tension reached their breaking tension fail
     (:mod:`bulletnet.kernels.breakage`; ``breakage`` None: none, nothing compiled; the
-    model's thread arrays k_a .. c_b must then be writable). Returns the steps
+    model's thread arrays k_a .. c_b must then be writable); after each step each element's
+    running maximum of its tension is kept (:mod:`bulletnet.kernels.peaks`; ``peaks``
+    None: none, nothing compiled). Returns the steps
     taken: fewer only if the self-contact list must grow first (the caller grows it and
     continues). The caller checks the result for non-finite values; a diverging chunk is at
     most one record interval. The bending springs, evaluated every ``every`` steps, act as
@@ -439,7 +442,7 @@ def advance(on_grid: bool, implicit: bool):
 
     @nb.njit(cache=True, error_model="numpy")
     def advance_loop(every, steps, pos, vel, quat, omega, model, work, gravity, external, dt,
-                     tol, contact, t0, grid, views, breakage):
+                     tol, contact, t0, grid, views, breakage, peaks):
         n = pos.shape[0]
         mass, fixed, radius = model.mass, model.fixed, model.radius
         torque, dv, gain = work.torque, work.dv, work.gain
@@ -486,6 +489,12 @@ def advance(on_grid: bool, implicit: bool):
                             for a in range(3):
                                 omega[i, a] += weight * gain[i] * torque[i, a]
                 pending += 1
+            if peaks is not None:  # the step's own tensions, as breakage reads them
+                if on_grid:
+                    grid_kernels.track_peaks(grid, peaks)
+                else:
+                    track_threads(work.tension, peaks, 0)
+                    track_cables(model.cables, peaks)
             if breakage is not None:  # at the step's end, from the step's own tensions
                 if on_grid:
                     grid_kernels.break_threads(grid, views, model.pairs, model.rest,

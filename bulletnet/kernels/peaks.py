@@ -1,0 +1,78 @@
+"""Each element's largest tension between frames, compiled with numba (docs/strength.md).
+
+Frames, taken at a scene's record rate, miss the microsecond snaps of a thread's damper.
+After every step the run loop keeps, per thread and per closing cable, the largest tension
+of any step since the recorder last read them: the tension the step computed its forces
+from (the state at the step's start), as the breakage check reads it
+(:mod:`bulletnet.kernels.breakage`). The recorder reads them at each frame, takes the larger
+of them and the frame's own tension, and resets them (``/threads/peak_tension``,
+``/cables/peak_tension``).
+
+On the pair list a thread's running maximum is its tension; on the grid
+(:mod:`bulletnet.solver.grid`) a grid thread's is kept as the squared length of its stored
+T e in rows laid out as the grid's (:attr:`PeakArrays.rows`), the cheapest pass over them
+(no square root per step; the square root of the largest square is the largest length).
+
+A loop given None for :class:`PeakArrays` keeps nothing: every kernel here begins ``if peaks
+is None: return`` and compiles to nothing.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numba as nb
+import numpy as np
+
+
+class PeakArrays(NamedTuple):
+    """The largest tensions since the last reset, for P threads and C closing cables
+    (:func:`peak_arrays`)."""
+
+    thread: np.ndarray
+    """Each thread's largest tension [N], shape (P,) (on the grid: its other threads only,
+    at their places in the thread list)."""
+    cable: np.ndarray
+    """Each closing cable's largest tension [N], shape (C,)."""
+    rows: np.ndarray
+    """On the grid, each grid thread's largest squared |T e| [N^2], h(i) in row 0 and v(i)
+    in row 1 at column Ns + i (the layout of :attr:`bulletnet.solver.grid.Grid.th`), shape
+    (2, W); (2, 0) on the pair list."""
+
+
+def peak_arrays(threads: int, cables: int, width: int = 0) -> PeakArrays:
+    """Zeroed peak arrays of ``threads`` threads and ``cables`` cables, with grid rows of
+    ``width`` columns (0: the pair list)."""
+    return PeakArrays(thread=np.zeros(threads), cable=np.zeros(cables),
+                      rows=np.zeros((2, width)))
+
+
+def reset(peaks: PeakArrays) -> None:
+    """Zero every running maximum (a new interval begins)."""
+    peaks.thread[:] = 0.0
+    peaks.cable[:] = 0.0
+    peaks.rows[:] = 0.0
+
+
+@nb.njit(cache=True, error_model="numpy")
+def track_cables(cables, peaks):
+    """Each closing cable's running maximum <- the larger of it and the cable's last tension
+    [N]. Nothing without cables or peaks."""
+    if cables is None or peaks is None:
+        return
+    tension, top = cables.tension, peaks.cable
+    for c in range(top.shape[0]):
+        if tension[c] > top[c]:
+            top[c] = tension[c]
+
+
+@nb.njit(cache=True, error_model="numpy")
+def track_threads(tension, peaks, start):
+    """Thread ``start + p``'s running maximum <- the larger of it and ``tension[p]`` [N]
+    (tension (Q,)). Nothing without peaks."""
+    if peaks is None:
+        return
+    top = peaks.thread
+    for p in range(tension.shape[0]):
+        if tension[p] > top[start + p]:
+            top[start + p] = tension[p]
