@@ -19,7 +19,7 @@ from bulletnet.studies.optimize import (
     load_optimisation,
     run_optimisation,
 )
-from bulletnet.studies.optimize_report import front
+from bulletnet.studies.optimize_report import front, report_optimisation
 from bulletnet.studies.report import wilson
 from bulletnet.studies.study import draw, read_table
 from tests import study_functions
@@ -132,6 +132,14 @@ def test_the_first_design_is_evaluated_first_on_the_same_draws(tmp_path):
         [-(0.5 - 0.3) ** 2 - (0.25 - 0.7) ** 2 + 0.05 * d["u"] for d in opt.draws], abs=1e-12)
     resumed = run_optimisation(load_optimisation(path), tmp_path / "out", serial=True)
     assert (resumed["skipped"], resumed["trials"]) == (4, 0)
+    # the report confirms the best design and the first on the same fresh draws (paired)
+    report_optimisation(tmp_path / "out", confirm_runs=3, serial=True, plots=False)
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    best = summary["best"]["design"]
+    assert best != 0 and summary["confirmation_first"]["design"] == 0
+    tables = [read_table(tmp_path / "out" / f"confirm_{n:04d}.csv")[1] for n in (best, 0)]
+    assert [r["u"] for r in tables[0]] == [r["u"] for r in tables[1]]
+    assert {(r["x"], r["y"]) for r in tables[1]} == {(0.5, 0.25)}
     path.write_text(path.read_text().replace("x = 0.5", "x = 1.5"))
     with pytest.raises(ScenarioError, match=r"first\.x: 1\.5 is outside"):
         load_optimisation(path)

@@ -69,16 +69,20 @@ def front(points: list[tuple[float, float, int]], maximize: bool) -> list[int]:
 def report_optimisation(out: Path, confirm_runs: int = 0, scheduler: str | None = None,
                         workers: int = 2, serial: bool = False, plots: bool = True) -> list[Path]:
     """Write ``out/summary.json`` (and with ``plots`` the figures); with ``confirm_runs``,
-    run the best design's confirmation first. The paths written."""
+    run the best design's confirmation first, and the ``[first]`` design's on the same fresh
+    draws (a paired comparison) if it is not the best. The paths written."""
     opt, study, _rows = load_folder(out)
     trials = trial_rows(study, opt)
     best = best_trial(study)
-    confirmation = None
+    confirmation = confirmation_first = None
     if confirm_runs > 0:
         if best is None:
             raise ScenarioError(f"{out}: no feasible completed design to confirm")
         confirmation = confirm(opt, out, best.number, dict(best.params), confirm_runs,
                                scheduler, workers, serial)
+        if opt.first is not None and best.number != 0:
+            confirmation_first = confirm(opt, out, 0, dict(opt.first), confirm_runs,
+                                         scheduler, workers, serial)
     weights, method = importances(study)
     weights = {opt.columns.get(k, k): v for k, v in weights.items()}
     ob = opt.objective
@@ -94,6 +98,7 @@ def report_optimisation(out: Path, confirm_runs: int = 0, scheduler: str | None 
         "designs": trials,
         "best": None if best is None else trials[best.number],
         "confirmation": confirmation,
+        "confirmation_first": confirmation_first,
         "importance": weights, "importance_method": method,
     }
     path = out / "summary.json"
@@ -123,14 +128,17 @@ def summary_text(out: Path) -> list[str]:
                                                 f"/{best['runs']})" if "p" in best else "")
                  + (f", {ob['cost']} {best['cost']:.4g}" if ob["cost"] else ""))
     lines += [f"  {k} = {v}" for k, v in best["variables"].items()]
-    c = s["confirmation"]
-    if c is not None:
-        level = f"{100 * ob['confidence']:g} %"
-        lines.append(f"confirmation on {c['draws']} fresh draws: objective "
-                     + ("none" if c["objective"] is None else f"{c['objective']:.4g}")
-                     + (f", P = {c['p']:.3f} ({level} interval {c['low']:.3f} - "
-                        f"{c['high']:.3f}, {c['successes']}/{c['runs']})" if "p" in c else "")
-                     + ("" if c["feasible"] else ", infeasible"))
+    level = f"{100 * ob['confidence']:g} %"
+    for key, what in (("confirmation", "confirmation"),
+                      ("confirmation_first", "the first design (0) on the same draws")):
+        c = s.get(key)
+        if c is not None:
+            lines.append(f"{what} on {c['draws']} fresh draws: objective "
+                         + ("none" if c["objective"] is None else f"{c['objective']:.4g}")
+                         + (f", P = {c['p']:.3f} ({level} interval {c['low']:.3f} - "
+                            f"{c['high']:.3f}, {c['successes']}/{c['runs']})" if "p" in c
+                            else "")
+                         + ("" if c["feasible"] else ", infeasible"))
     if s["importance"]:
         lines.append(f"importance ({s['importance_method']}): " + ", ".join(
             f"{k} {v:.2f}" for k, v in s["importance"].items()))
