@@ -20,8 +20,10 @@ from tests.conftest import small_scene
 from tests.test_grid import assert_identical, final_states
 
 
-def point_masses(mass, pairs=(), rest=(), stiffness=(), damping=()) -> NetModel:
-    """Free point masses joined by tension-only threads (no bending, no cables)."""
+def point_masses(mass, pairs=(), rest=(), stiffness=(), damping=(),
+                 breaking=np.inf) -> NetModel:
+    """Free point masses joined by tension-only threads (no bending, no cables) of breaking
+    tension ``breaking`` [N]."""
     n, p = len(mass), len(pairs)
     zeros = np.zeros(p)
     return NetModel(
@@ -32,7 +34,7 @@ def point_masses(mass, pairs=(), rest=(), stiffness=(), damping=()) -> NetModel:
         axial_damping=np.asarray(damping, float), transverse_stiffness=zeros,
         transverse_damping=zeros, bending_stiffness=zeros, bending_damping=zeros,
         inertia=np.full(n, 1e-6), rest_axis=np.zeros((p, 3)), fixed=np.zeros(n, bool),
-        load=np.zeros((n, 3)), breaking_tension=np.full(p, np.inf), bilateral=False)
+        load=np.zeros((n, 3)), breaking_tension=np.full(p, float(breaking)), bilateral=False)
 
 
 def scene(**keys) -> scenario.Scenario:
@@ -258,12 +260,13 @@ def test_spinning_body_keeps_its_inertial_spin_in_the_rotating_frame():
 
 
 def thrust_run(profile, integrator="symplectic_euler", t_end=2.0, frames=2000, burn=0.0,
-               force=10.0, orbit=False, slack=0.0, zeta=0.0, **thrust):
+               force=10.0, orbit=False, slack=0.0, zeta=0.0, breaking=np.inf, **thrust):
     """A chaser of 1 kg on a taut elastic tether (k = 100 N/m, undamped, or of damping ratio
     ``zeta`` in the pair's axial mode) to a point mass of 3 kg, at rest, thrusting
     ``force`` [N] away from it from t = 0 with ``profile`` (and the other ``thrust`` keys);
-    ``slack`` [m]: the chaser starts that much closer, the tether slack: the times [s] (T,),
-    the tether tensions [N] (T,), the final state and the control."""
+    ``slack`` [m]: the chaser starts that much closer, the tether slack; ``breaking`` [N]
+    finite: the tether's strength, breakage on: the times [s] (T,), the tether tensions [N]
+    (T,), the final state and the control."""
     m_d, m_c, length = 3.0, 1.0, 2.0
     area = 100.0 * length / 1e9  # E A / L = 100 N/m with E = 1 GPa
     mu = m_c * m_d / (m_c + m_d)
@@ -276,8 +279,10 @@ def thrust_run(profile, integrator="symplectic_euler", t_end=2.0, frames=2000, b
               thrust__rise_time=0.3, thrust__burn_time=burn, thrust__trigger="time",
               simulation__integrator=integrator, simulation__dt=1e-4, scene__duration=t_end,
               orbit__enabled=orbit, orbit__mean_motion=N_FAST,
+              strength__breakage=bool(np.isfinite(breaking)),
               **{f"thrust__{k}": v for k, v in thrust.items()})
-    model = point_masses([m_d, m_c], [(0, 1)], [length], [100.0], [2 * zeta * mu * omega])
+    model = point_masses([m_d, m_c], [(0, 1)], [length], [100.0], [2 * zeta * mu * omega],
+                         breaking)
     engine = make_engine(s, model)
     state = NetState(0.0, np.array([[0.0, 0, 0], [length - slack, 0, 0]]), np.zeros((2, 3)))
     control = ThrustControl(s, model, engine, None)
@@ -306,6 +311,25 @@ def test_step_thrust_on_a_tethered_pair(integrator):
     assert tension[whole].mean() == pytest.approx(mean, rel=1e-2)
     up = np.nonzero((tension[:-1] < mean) & (tension[1:] >= mean))[0]
     assert 2 * math.pi / np.diff(times[up]).mean() == pytest.approx(omega, rel=1e-2)
+
+
+@pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
+def test_a_failed_tether_ends_the_burn(integrator):
+    # Reference: the step's tension T(t) = F m_d / M (1 - cos w t) (above) reaches a
+    # strength of 12 N at t_b = acos(1 - 12 M / (F m_d)) / w = 0.1918 s; the tether then
+    # fails (strength.breakage), carries nothing, and the burn ends with it: the pair's
+    # momentum stays the impulse F t_b delivered until then (to within the thrust's chunk,
+    # 1/240 s, and one step), and no later tension.
+    times, tension, state, control = thrust_run("step", integrator, t_end=1.0, frames=1000,
+                                                breaking=12.0)
+    w = math.sqrt(100.0 * (1 / 1.0 + 1 / 3.0))
+    t_b = math.acos(1 - 12.0 * 4.0 / (10.0 * 3.0)) / w
+    failed = control.tether is not None and times[tension > 0].max()
+    assert failed == pytest.approx(t_b, abs=2e-3)
+    assert (tension[times > t_b + 2e-3] == 0.0).all()
+    momentum = (np.array([3.0, 1.0])[:, None] * state.velocity).sum(axis=0)
+    assert momentum[0] == pytest.approx(10.0 * t_b, abs=10.0 * (1 / 240 + 1e-4))
+    np.testing.assert_allclose(momentum[1:], 0.0, atol=1e-12)
 
 
 @pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
