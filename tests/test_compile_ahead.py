@@ -21,8 +21,9 @@ from bulletnet.sim.compile_ahead import is_cached, signature
 def test_kernel_groups_are_the_loops_own_specializations(tmp_path, monkeypatch, overrides):
     # Reference: numba's record of the signatures each dispatcher compiled (or loaded) for the
     # run's loop: every (kernel, arguments) of the groups is one of them, for the arguments'
-    # types as the loop passes them. The loop is compiled here, not loaded from numba's cache
-    # (a loaded loop types none of the kernels it calls, so their records would be empty).
+    # types as the loop passes them. The loop is a new dispatcher compiled here, not loaded
+    # from numba's cache (a loaded loop types none of the kernels it calls, so their records
+    # would be empty).
     from numba.core.caching import NullCache
 
     from bulletnet.solver import integrators
@@ -30,8 +31,9 @@ def test_kernel_groups_are_the_loops_own_specializations(tmp_path, monkeypatch, 
     scene = small_capture(**{"scene.duration": 0.1, **overrides})
     model = bn.build_model(scene)
     engine = make_engine(scene, model)
-    loop = integrators.advance(engine.grid is not None, engine.implicit)
-    monkeypatch.setattr(loop, "_cache", NullCache())
+    loop = integrators.advance.__wrapped__(engine.grid is not None, engine.implicit)  # anew
+    loop._cache = NullCache()
+    monkeypatch.setattr(integrators, "advance", lambda on_grid, implicit: loop)
     bn.run(scene, tmp_path / "run.h5")
     groups = engine.kernel_groups(bn.initial_state(scene, model))
     bending = overrides.get("bending.enabled", False) and "simulation.kernels" not in overrides

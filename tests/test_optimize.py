@@ -300,7 +300,9 @@ def test_the_capture_optimisation_file_loads(tmp_path):
     mine = tmp_path / "mine.toml"
     mine.write_text(path.read_text().replace("[design]", '[design]\n"net.nodes_per_side" = '
                                              '{low = 15, high = 21, int = true}\n'
-                                             '"closing.trigger" = {values = ["contact", "wrap"]}'))
+                                             '"closing.trigger" = {values = ["contact", "wrap"]}')
+                    .replace("[first]", '[first]\n"net.nodes_per_side" = 21\n'
+                                        '"closing.trigger" = "contact"'))
     columns = load_optimisation(mine).columns
     assert columns["net.nodes_per_side"] == "net.nodes_per_side"
     assert columns["closing.trigger"] == "closing.trigger"

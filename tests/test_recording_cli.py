@@ -142,7 +142,7 @@ def test_a_misspelt_key_in_a_scene_file_gets_the_closest_key(tmp_path):
 @pytest.mark.parametrize(("args", "needle"), [
     (["run", "nosuchscene"],
      "named scenes: cantilever, capture, capture_closing, capture_envisat, deployment, "
-     "removal)"),
+     "deployment_breaking, removal)"),
     (["run", "sweep_example"], "a sweep file, not a scene; run it with `bulletnet sweep"),
     (["run", "deployment", "--set", "net.colour=3"], "unknown key"),
     (["run", "deployment", "--set", "net.nodes_per_sid=5"],

@@ -150,7 +150,8 @@ def dask_client(scheduler: str | None, workers: int):
               "distributed.scheduler.worker-saturation": 1.0}
     with dask.config.set(config), LocalCluster(
             n_workers=workers, threads_per_worker=1, processes=True,
-            dashboard_address=None) as cluster, Client(cluster) as client:
+            dashboard_address=":0") as cluster, Client(cluster) as client:
+        # (":0": a free port; None still takes 8787 and warns if another cluster has it)
         client.run(_quiet_worker)
         try:
             yield client
