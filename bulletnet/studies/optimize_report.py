@@ -129,11 +129,11 @@ def summary_text(out: Path) -> list[str]:
                  + (f", {ob['cost']} {best['cost']:.4g}" if ob["cost"] else ""))
     lines += [f"  {k} = {v}" for k, v in best["variables"].items()]
     level = f"{100 * ob['confidence']:g} %"
-    for key, what in (("confirmation", "confirmation"),
-                      ("confirmation_first", "the first design (0) on the same draws")):
+    for key, what in (("confirmation", "confirmation on"),
+                      ("confirmation_first", "the first design (0) on the same")):
         c = s.get(key)
         if c is not None:
-            lines.append(f"{what} on {c['draws']} fresh draws: objective "
+            lines.append(f"{what} {c['draws']} fresh draws: objective "
                          + ("none" if c["objective"] is None else f"{c['objective']:.4g}")
                          + (f", P = {c['p']:.3f} ({level} interval {c['low']:.3f} - "
                             f"{c['high']:.3f}, {c['successes']}/{c['runs']})" if "p" in c
