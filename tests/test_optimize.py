@@ -308,6 +308,27 @@ def test_the_capture_optimisation_file_loads(tmp_path):
     assert columns["closing.trigger"] == "closing.trigger"
 
 
+def test_of_equal_scores_the_best_design_is_the_cheapest():
+    # reference: the definition (a Wilson bound over K runs takes few values, so designs tie):
+    # of the feasible designs of the best score, the least cost; without a cost, the first
+    import optuna
+
+    from bulletnet.studies.optimize import best_trial
+
+    def study(with_cost: bool):
+        s = optuna.create_study(direction="maximize")
+        x = optuna.distributions.FloatDistribution(0.0, 1.0)
+        for value, cost, feasible in ((0.7, 3.0, True), (0.7, 2.5, True), (0.7, 2.0, False),
+                                      (0.6, 1.0, True)):
+            s.add_trial(optuna.trial.create_trial(
+                value=value, params={"x": cost / 10}, distributions={"x": x},
+                user_attrs={"feasible": feasible} | ({"cost": cost} if with_cost else {})))
+        return s
+
+    assert best_trial(study(True)).number == 1
+    assert best_trial(study(False)).number == 0
+
+
 def test_a_changed_file_does_not_resume_into_the_folder(tmp_path):
     # reference: the folder's optimize.json; more trials go on, any other change is refused
     run_optimisation(load_optimisation(bowl(tmp_path, trials=2)), tmp_path / "out", serial=True)

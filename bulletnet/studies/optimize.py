@@ -617,7 +617,8 @@ def asked(study) -> list:
 
 
 def best_trial(study):
-    """The feasible completed trial of the best score, or None."""
+    """The feasible completed trial of the best score, or None; of equal scores (K runs give
+    few distinct Wilson bounds) the one of least cost, then the first."""
     from optuna.trial import TrialState
 
     done = [t for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
@@ -625,7 +626,12 @@ def best_trial(study):
     if not done:
         return None
     sign = 1.0 if study.direction.name == "MAXIMIZE" else -1.0
-    return max(done, key=lambda t: (sign * t.value, -t.number))
+
+    def cost(t) -> float:
+        c = t.user_attrs.get("cost")
+        return c if isinstance(c, int | float) and math.isfinite(c) else math.inf
+
+    return max(done, key=lambda t: (sign * t.value, -cost(t), -t.number))
 
 
 def _progress(study, opt: Optimisation, number: int, scores: dict, ran: int, skipped: int,
