@@ -683,21 +683,26 @@ def break_threads(grid, views, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, breaka
         if np.sqrt(e[0, col] ** 2 + e[1, col] ** 2 + e[2, col] ** 2) < limit[p]:
             continue
         fail_thread(p, pos, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, breakage, t)
-        k, c, bend = ((grid.h_k, grid.h_c, grid.h_bend) if across else
-                      (grid.v_k, grid.v_c, grid.v_bend))
-        k[i] = 0.0
-        c[i] = 0.0
-        for r in range(4):
-            bend[r, i] = 0.0
+        if across:
+            _cut(grid.h_k, grid.h_c, grid.h_bend, i)
+        else:
+            _cut(grid.v_k, grid.v_c, grid.v_bend, i)
     for q in range(grid.o_pairs.shape[0]):
         p = inner + q
         if failed[p] >= 0.0 or grid.o_tension[q] < limit[p]:
             continue
         fail_thread(p, pos, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, breakage, t)
-        grid.o_k[q] = 0.0
-        grid.o_c[q] = 0.0
-        for r in range(4):
-            grid.o_bend[r, q] = 0.0
+        _cut(grid.o_k, grid.o_c, grid.o_bend, q)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _cut(k, c, bend, i):
+    """Thread i of a stencil's (or the other threads') rows carries nothing: its axial
+    stiffness k [N/m], damping c [N s/m] and bending parameters bend[0..3] zeroed."""
+    k[i] = 0.0
+    c[i] = 0.0
+    for r in range(4):
+        bend[r, i] = 0.0
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
