@@ -26,7 +26,8 @@ Capture (Sec. 5), from recordings with debris and contact:
   elastic energy and the debris' kinetic energy. What it leaves out (the nodes' rotation, the
   bending and contact springs) is never negative and zero at the start of a scene, and every
   force of the model is passive: so it never rises above its initial value plus the work of
-  the closing mechanism's winches (:func:`winch_work`) in a sound run.
+  the closing mechanism's winches (:func:`winch_work`) and of the chaser's thrust
+  (:func:`thrust_work`) in a sound run.
 
 Strength (every recording; docs/strength.md), over the elements: the threads (net threads,
 corner threads, a bridle's lines, the tether's, by their ends' kinds:
@@ -258,6 +259,16 @@ def capture_outcome(rec: Recording) -> tuple[np.ndarray, OutcomeMonitor]:
     return scores, monitor
 
 
+def thrust_profile(rec: Recording):
+    """The recorded run's burn (:class:`~bulletnet.model.thrust.ThrustProfile`), from its
+    scene's ``[thrust]``, its start ``thrust_start_s`` [s] and the axial mode it recorded."""
+    from ..model.thrust import ThrustProfile
+
+    return ThrustProfile(_scene(rec).thrust, float(rec.attrs["thrust_start_s"]),
+                         float(rec.attrs["thrust_axial_frequency_rad_s"]),
+                         float(rec.attrs["thrust_damping_ratio"]))
+
+
 def tow_series(rec: Recording) -> dict:
     """The tow's frames, from the burn's start (``thrust_start_s``) on, as the run's tow judge
     saw them (:class:`~bulletnet.sim.tow.TowOutcome`): ``time`` [s], ``thrust`` [N] (the
@@ -265,8 +276,6 @@ def tow_series(rec: Recording) -> dict:
     chaser, its last thread), ``distance`` [m] (chaser to the debris' centre of mass),
     ``enclosed`` [-] (the capture score's enclosed fraction) and ``rate`` [rad/s] (the
     debris' angular speed), each shape (F,); empty if the burn never started."""
-    from ..model.thrust import ThrustProfile
-
     d = _require(rec, "debris")
     start = float(rec.attrs.get("thrust_start_s", -1.0))
     if "tow_outcome" not in rec.attrs and start < 0:
@@ -275,8 +284,7 @@ def tow_series(rec: Recording) -> dict:
     frames = np.nonzero(rec.time >= start)[0] if start >= 0 else np.zeros(0, dtype=int)
     geometry = score_geometry(rec)
     chaser = debris_center_of_mass(rec)[frames] - rec.position[frames, -1]
-    profile = ThrustProfile(_scene(rec).thrust, start, float(rec.attrs[
-        "thrust_axial_frequency_rad_s"]), float(rec.attrs["thrust_damping_ratio"]))
+    profile = thrust_profile(rec)
     times = rec.time[frames]
     ends = np.append(times[1:], times[-1] + 1.0) if times.size else times
     return {
@@ -350,6 +358,27 @@ def winch_work(rec: Recording) -> np.ndarray:
     return rec.cables["work"].sum(axis=1)
 
 
+def thrust_work(rec: Recording) -> np.ndarray:
+    """Work done by the chaser's thrust so far [J], shape (T,); zero without a burn. From the
+    frames: over each frame interval the profile's mean force (:func:`tow_series`' thrust)
+    times the chaser's displacement along the burn's direction, exact where the force is
+    constant over the interval (the steps of a shaped rise are smeared over the interval
+    they fall in). The mechanical energy may rise by this and the winches' work and no more
+    (the HCW forces of ``[orbit]`` are left out: in the removal scene their potential
+    changes by about 1 J)."""
+    work = np.zeros(rec.time.size)
+    start = float(rec.attrs.get("thrust_start_s", -1.0))
+    if start < 0:
+        return work
+    profile = thrust_profile(rec)
+    direction = np.asarray(_scene(rec).thrust.direction, dtype=float)
+    moved = np.diff(rec.position[:, -1], axis=0) @ (direction / np.linalg.norm(direction))
+    force = np.array([profile.mean(a, b)
+                      for a, b in zip(rec.time[:-1], rec.time[1:], strict=True)])
+    work[1:] = np.cumsum(force * moved)
+    return work
+
+
 def spin(rec: Recording) -> dict:
     """The debris' angular velocity [deg/s] at the first and last frame, (3,) each, and the
     change of its magnitude [deg/s]."""
@@ -361,11 +390,11 @@ def spin(rec: Recording) -> dict:
 def capture_summary(rec: Recording) -> dict:
     """Capture measures (JSON-ready, units in the keys): first-contact and leave times,
     peak nodes in contact and wrap, the debris' spin change, the largest rise of the
-    mechanical energy above its start plus the winches' work (:func:`energy`,
-    :func:`winch_work`; a sound run has none), the outcome (:func:`capture_outcome`:
-    ``outcome``, ``outcome_time_s`` when decided and ``outcome_since_s`` when its condition
-    began, -1 while undecided, and ``outcome_reason``), the highest capture quality, and the
-    time series."""
+    mechanical energy above its start plus the winches' and the thrust's work
+    (:func:`energy`, :func:`winch_work`, :func:`thrust_work`; a sound run has none), the
+    outcome (:func:`capture_outcome`: ``outcome``, ``outcome_time_s`` when decided and
+    ``outcome_since_s`` when its condition began, -1 while undecided, and
+    ``outcome_reason``), the highest capture quality, and the time series."""
     count = nodes_in_contact(rec)
     wrapped = wrap(rec)
     k = int(np.argmax(wrapped))
@@ -380,7 +409,8 @@ def capture_summary(rec: Recording) -> dict:
         "max_nodes_in_contact": int(count.max()),
         "max_wrap": float(wrapped[k]), "max_wrap_time_s": float(rec.time[k]),
         "spin": spin(rec),
-        "max_energy_gain_J": float(np.max(total - total[0] - winch_work(rec))),
+        "max_energy_gain_J": float(np.max(total - total[0] - winch_work(rec)
+                                          - thrust_work(rec))),
         "outcome": judged.outcome, "outcome_time_s": judged.time,
         "outcome_since_s": judged.since, "outcome_reason": judged.reason,
         "max_capture_quality": float(scores[best, 2]),

@@ -753,8 +753,9 @@ def cmd_metrics(args) -> int:
         print("debris angular velocity [deg/s]: "
               f"{' '.join(f'{w:.4f}' for w in spin['initial_deg_s'])} -> "
               f"{' '.join(f'{w:.4f}' for w in spin['final_deg_s'])}")
-        print(f"largest rise of the mechanical energy above its start: "
-              f"{capture['max_energy_gain_J']:.3g} J (a passive model has none)")
+        print(f"largest rise of the mechanical energy above its start and the work done on "
+              f"it (winches, thrust): {capture['max_energy_gain_J']:.3g} J (a sound run has "
+              "none)")
         print(f"capture quality at most {capture['max_capture_quality']:.3f} (at "
               f"{capture['max_capture_quality_time_s']:.1f} s); at the end: enclosed "
               f"{capture['enclosed_fraction'][-1]:.3f}, mouth opening "
