@@ -36,8 +36,8 @@ SCALES = {"net": (ElementKind.NET, ElementKind.CORNER), "tether": (ElementKind.T
 tens of N where a tow loads the tether with hundreds of N to kN and the winches the closing
 cables with up to tens of kN."""
 CHASER_SIZE = 2.0
-"""Edge of the cube drawn for a free chaser [m]: a symbol, the chaser being a point mass in
-the model (its node's radius is the tether's)."""
+"""Edge of the cube drawn for a free chaser [m]: a symbol, seen from tens of metres; in the
+model the chaser is a point mass."""
 THRUST_LENGTH = 10.0
 """Length of the thrust arrow at the largest thrust of its recording [m]; shorter in
 proportion for less."""

@@ -1,10 +1,11 @@
 """The 3D scene of a replay on a viser server: per recording, its nodes as spheres at their
-radius, its corner masses, its threads as line segments coloured by tension (the tether's on
-its own scale; or shear, or utilisation: tension over breaking tension, dark at the breaking
-tension), failed threads as red stubs, the corner masses' trails, a free chaser as a cube with
-its thrust as an arrow while the burn is on, and the debris mesh. Geometry that does not
-change (sphere mesh, radii, debris mesh) is sent once; a new frame sends only what moved, and
-node colours only when the set of nodes in contact changes.
+radius, its corner masses, its threads as line segments coloured by tension (on a scale per
+kind of line: net, tether, closing cables; or shear, or utilisation: tension over breaking
+tension, dark at the breaking tension), failed threads as red stubs, the corner masses'
+trails, a free chaser as a cube with its thrust as an arrow while the burn is on, and the
+debris mesh. Geometry that does not change (sphere mesh, radii, debris mesh) is sent once; a
+new frame sends only what moved, and node colours only when the set of nodes in contact
+changes.
 """
 
 from __future__ import annotations
