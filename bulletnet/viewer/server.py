@@ -9,7 +9,7 @@ import time
 
 from .panel import Panel, TowPanel
 from .replay import CHASER_SIZE, FAILED, SLACK, STUB, THRUST_LENGTH, Replay
-from .scene import build_scene, viser_server
+from .scene import THRUST, build_scene, viser_server
 
 SPEEDS = ("0.1", "0.25", "0.5", "1", "2", "4")
 """Playback speeds offered [simulated s per wall s]."""
@@ -89,8 +89,9 @@ class LiveViewer:
                          f"rgb{FAILED}")
         if replay.has_chaser:
             lines.append(f"Chaser: a {CHASER_SIZE:g} m cube (a symbol: a point mass in the "
-                         "model)" + (f"; its thrust: an arrow, {THRUST_LENGTH:g} m long "
-                                     "at the recording's largest" if replay.has_tow else ""))
+                         "model)" + (f"; its thrust: an arrow rgb{THRUST}, {THRUST_LENGTH:g} m "
+                                     "long at its recording's largest thrust"
+                                     if replay.has_tow else ""))
         return "  \n".join(lines)
 
     def _show(self, part: str, visible: bool) -> None:
