@@ -18,6 +18,19 @@ held in the cinched nets (the cables drawn with the threads),
     bulletnet run capture_closing --bending --out closing_bending.h5
     python docs/viewer_figures.py closing closing_plain.h5 closing_bending.h5
 
+and docs/figures/viewer_removal.png from a removal run of 70 s at the largest tension of the
+tether at the chaser during the tow (:func:`bulletnet.analysis.metrics.tow_series`; the script
+prints its time), with the tow panel,
+
+    bulletnet run removal --duration 70 --record-rate 10 --out removal70.h5
+    python docs/viewer_figures.py removal removal70.h5
+
+and docs/figures/viewer_breaking.png from the deployment with breakage at 2.1 s, its failed
+threads drawn as red stubs,
+
+    bulletnet run deployment_breaking --out breaking.h5
+    python docs/viewer_figures.py breaking breaking.h5
+
 The capture picture is taken at the frame of 20-30 s where the net wraps the debris best: the
 largest, over those frames, of the smaller of the two recordings' wrap fractions
 (:func:`bulletnet.analysis.metrics.wrap`); the script prints the time and both fractions. Its camera
@@ -46,11 +59,22 @@ WRAP_WINDOW = (20.0, 30.0)
 """Times among which the capture picture is taken [s]."""
 
 
+def debris(replay, k: int) -> np.ndarray:
+    """The first recording's debris at master frame ``k`` [m]."""
+    return replay.tracks[0].debris.position[replay.index[0, k]]
+
+
+def tow(replay, k: int) -> np.ndarray:
+    """Halfway from the first recording's debris to its chaser at master frame ``k`` [m]."""
+    return 0.5 * (debris(replay, k) + replay.tracks[0].position[replay.index[0, k], -1])
+
+
 def screenshot(paths: list, at: float, out: Path, snapshots: list[float],
-               zoom: float = 1.0) -> None:
+               zoom: float = 1.0, focus=debris) -> None:
     """The live viewer of ``paths`` paused at time ``at`` [s], 1400 x 1100 px, to ``out``;
-    with ``zoom`` > 1 the camera looks at the first recording's debris, from the default
-    camera's direction, ``zoom`` times closer than the default camera's distance."""
+    with ``zoom`` > 1 the camera looks at ``focus(replay, k)`` [m] (k the master frame), from
+    the default camera's direction, ``zoom`` times closer than the default camera's
+    distance."""
     from playwright.sync_api import sync_playwright
 
     replay = load_replay(paths)
@@ -60,13 +84,13 @@ def screenshot(paths: list, at: float, out: Path, snapshots: list[float],
         viewer.goto(k)
         if zoom != 1.0:
             camera = server.initial_camera
-            target = replay.tracks[0].debris.position[replay.index[0, k]]
+            target = focus(replay, k)
             camera.position = target + (camera.position - camera.look_at) / zoom
             camera.look_at = target
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         page = browser.new_page(viewport={"width": 1400, "height": 1100})
         page.goto(f"http://127.0.0.1:{server.get_port()}")
-        page.wait_for_selector("#bulletnet-mouth")
+        page.wait_for_selector("#bulletnet-mouth", state="attached")
         page.add_style_tag(content=".mantine-Notifications-root { display: none; }")
         time.sleep(8.0)  # software rendering: let the frame settle
         page.screenshot(path=str(out))
@@ -89,6 +113,14 @@ def best_wrap_time(paths: list) -> float:
     return float(t[k])
 
 
+def peak_tension_time(path) -> float:
+    """The time of the tow's largest tension at the chaser [s]."""
+    series = bn.metrics.tow_series(bn.open_recording(path))
+    k = int(np.argmax(series["tension"]))
+    print(f"t = {series['time'][k]:g} s, tension at the chaser {series['tension'][k]:.0f} N")
+    return float(series["time"][k])
+
+
 def main(which: str, *paths: str) -> None:
     if which == "deployment":
         screenshot(list(paths), 1.5, OUT / "viewer_deployment.png", [0.5, 1.0, 2.0, 3.0])
@@ -97,6 +129,12 @@ def main(which: str, *paths: str) -> None:
         screenshot(list(paths), at, OUT / "viewer_capture.png", [10.0, at], zoom=1.8)
     elif which == "closing":
         screenshot(list(paths), 60.0, OUT / "viewer_closing.png", [10.0, 30.0, 60.0], zoom=1.8)
+    elif which == "removal":
+        at = peak_tension_time(paths[0])
+        screenshot(list(paths), at, OUT / "viewer_removal.png", [30.0, at], zoom=1.6,
+                   focus=tow)
+    elif which == "breaking":
+        screenshot(list(paths), 2.1, OUT / "viewer_breaking.png", [1.0, 2.1])
     else:
         raise SystemExit(__doc__)
 

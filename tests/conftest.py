@@ -29,6 +29,18 @@ def small_capture(**overrides):
         "simulation.record_rate": 20.0, **overrides})
 
 
+def small_tow(**overrides):
+    """:func:`small_capture` in orbit with a 3 m tether (3 threads) to a 10 kg chaser, which
+    burns 5 N (ZV-shaped) from 0.2 s, before the net holds the debris (the tow, judged with
+    a 1 m safe distance, slips at once); 0.5 s; with dotted-key overrides."""
+    return small_capture(**{
+        "scene.duration": 0.5, "tether.enabled": True, "tether.length": 3.0,
+        "tether.segments": 3, "tether.chaser_distance": 3.0, "tether.chaser_mass": 10.0,
+        "thrust.enabled": True, "thrust.trigger": "time", "thrust.trigger_time": 0.2,
+        "thrust.profile": "zv", "thrust.force": 5.0, "tow.enabled": True,
+        "tow.safe_distance": 1.0, "orbit.enabled": True, **overrides})
+
+
 @pytest.fixture(scope="session")
 def viewer_runs(tmp_path_factory):
     """Recordings for the replay tests: a plain deployment at 100 Hz, a bending deployment at
@@ -41,3 +53,21 @@ def viewer_runs(tmp_path_factory):
     bn.run(small_capture(), capture)
     assert bn.open_recording(capture).contacts["count"].max() > 0, "no contact in the capture"
     return {"plain": plain, "bending": bending, "capture": capture, "dir": d}
+
+
+@pytest.fixture(scope="session")
+def viewer_tow(tmp_path_factory):
+    """A recording of :func:`small_tow`, for the replay's chaser, tether and tow panel."""
+    path = tmp_path_factory.mktemp("viewer_tow") / "tow.h5"
+    bn.run(small_tow(), path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def viewer_broken(tmp_path_factory):
+    """A recording of the small deployment whose net threads break (1/85 of Technora's
+    strength, breakage on; tests/test_breakage.py's nets), for the replay's failed threads."""
+    path = tmp_path_factory.mktemp("viewer_broken") / "broken.h5"
+    bn.run(small_scene(**{"strength.breakage": True, "strength.thread_breaking_stress": 4e7,
+                          "scene.duration": 0.6}), path)
+    return path

@@ -446,15 +446,9 @@ def test_a_run_records_the_burn_and_the_tow(tmp_path):
     # its recorded impulse is the profile's, the tow is judged from the burn's first frame
     # (the debris is not yet in the net there: slipped), and `metrics` reports it all.
     from bulletnet.analysis.metrics import summary
-    from tests.conftest import small_capture
+    from tests.conftest import small_tow
 
-    s = small_capture(**{
-        "scene.duration": 0.5, "tether.enabled": True, "tether.length": 3.0,
-        "tether.segments": 3, "tether.chaser_distance": 3.0, "tether.chaser_mass": 10.0,
-        "thrust.enabled": True, "thrust.trigger": "time", "thrust.trigger_time": 0.2,
-        "thrust.profile": "zv", "thrust.force": 5.0, "tow.enabled": True,
-        "tow.safe_distance": 1.0, "orbit.enabled": True})
-    result = bn.run(s, tmp_path / "tow.h5")
+    result = bn.run(small_tow(), tmp_path / "tow.h5")
     attrs = bn.open_recording(result.path).attrs
     assert attrs["thrust_start_s"] == 0.2
     assert attrs["thrust_impulse_Ns"] > 0.0

@@ -233,3 +233,169 @@ def test_html_export_and_index(runs, tmp_path, capsys):
     assert cli(capsys, runs["plain"], "--html", out.parent / "plain.html")[0] == 0
     index = (out.parent / "index.html").read_text()
     assert 'href="capture.html"' in index and 'href="plain.html"' in index
+
+
+def _polylines(svg: str) -> list[np.ndarray]:
+    """The points of every ``<polyline>`` in ``svg``, in order [px], each shape (n, 2)."""
+    import re
+
+    return [np.array([p.split(",") for p in points.split()], float)
+            for points in re.findall(r'<polyline points="([^"]*)"', svg)]
+
+
+def test_tow_panel_draws_metrics_tow_series_and_outcome(viewer_tow):
+    # reference: bulletnet.analysis.metrics.tow_series and tow_outcome on the recording
+    from bulletnet.viewer.panel import TowPanel
+
+    rec = bn.open_recording(viewer_tow)
+    series, judged = bn.metrics.tow_series(rec), bn.metrics.tow_outcome(rec)
+    replay = load_replay([viewer_tow])
+    panel = TowPanel(replay)
+    svg = panel.svg(0)
+    names = ("thrust", "tension", "distance", "enclosed")
+    assert [plot.name for plot, _ in panel.time_axes] == list(names)
+    assert panel.time_axes[0][1].xlim == (series["time"][0], rec.time[-1])
+    for (_, axes), xy, name in zip(panel.time_axes, _polylines(svg), names, strict=True):
+        pixel = np.array([(axes.xlim[1] - axes.xlim[0]) / axes.box[2],
+                          (axes.ylim[1] - axes.ylim[0]) / axes.box[3]])
+        np.testing.assert_allclose(_invert(axes, xy),  # coordinates printed to 0.1 px
+                                   np.stack([series["time"], series[name]], axis=1),
+                                   rtol=0, atol=0.06 * pixel.max())
+    # the safe distance and the slip threshold dotted, at the recording's [tow] rules
+    for name, level in (("distance", judged.rules.safe_distance),
+                        ("enclosed", judged.rules.enclosed_fraction)):
+        plot, axes = next(p for p in panel.time_axes if p[0].name == name)
+        assert plot.levels[0][0] == level
+        assert f'y1="{axes(0.0, level)[1]:.1f}"' in svg
+    assert f"tow {judged.outcome} at {judged.time:.1f} s" in svg
+    # the current values: none before the burn (cursor hidden), the series' at each frame after
+    before = panel.updates(0)
+    assert before["cursor-thrust"]["visibility"] == "hidden"
+    assert before["value-tension"]["text"] == "- [N]"
+    for k in np.flatnonzero(replay.time >= series["time"][0]):
+        update, i = panel.updates(k), int(np.searchsorted(series["time"], replay.time[k]))
+        assert update["cursor-tension"]["visibility"] == "visible"
+        for name, digits in zip(names, (0, 0, 1, 3), strict=True):
+            # printed to `digits` decimals: within half a unit of the last (and round-off)
+            value = float(update[f"value-{name}"]["text"].split()[0])
+            assert value == pytest.approx(series[name][i], abs=0.5 * 10.0**-digits + 1e-12)
+
+
+def test_chaser_drawn_as_a_cube_with_its_thrust_arrow(viewer_tow):
+    # reference: the recording's last node (the chaser), the frames' thrust of
+    # metrics.tow_series and the recorded scene's thrust direction
+    from bulletnet.model.net import NodeKind
+    from bulletnet.viewer.replay import CHASER_SIZE, THRUST_LENGTH, thrust_arrow
+    from bulletnet.viewer.server import LiveViewer
+
+    rec = bn.open_recording(viewer_tow)
+    series = bn.metrics.tow_series(rec)
+    direction = np.asarray(bn.metrics.recorded_scene(rec).thrust.direction, float)
+    direction /= np.linalg.norm(direction)
+    replay = load_replay([viewer_tow])
+    track = replay.tracks[0]
+    assert track.chaser and rec.kind[-1] == NodeKind.CHASER
+    assert rec.position.shape[1] - 1 not in track.net_nodes
+    for j in range(rec.time.size):
+        arrow = thrust_arrow(track, j)
+        if rec.time[j] < series["time"][0]:
+            assert arrow is None
+            continue
+        thrust = series["thrust"][np.searchsorted(series["time"], rec.time[j])]
+        start = rec.position[j, -1] + 0.5 * CHASER_SIZE * direction
+        end = start + THRUST_LENGTH * thrust / series["thrust"].max() * direction
+        np.testing.assert_allclose(arrow[0], [start, end], rtol=0, atol=1e-12)
+    with viser_server() as server:
+        viewer = LiveViewer(server, replay, [0.1])
+        layer = viewer.layers[0]
+        assert "chaser" in viewer.controls and viewer.tow_panel is not None
+        for k in (0, replay.time.size - 1):
+            viewer.goto(k)
+            np.testing.assert_allclose(layer.chaser.position, rec.position[k, -1], rtol=1e-6)
+            assert layer.thrust.visible == (rec.time[k] >= series["time"][0])
+        viewer._show("chaser", False)
+        assert not layer.chaser.visible and not layer.thrust.visible
+        viewer._show("chaser", True)
+        assert layer.chaser.visible and layer.thrust.visible
+
+
+def test_tether_coloured_on_its_own_tension_scale(viewer_tow, runs):
+    # reference: the documented scales, the 99th percentile of the positive tensions of each
+    # kind of line over the recordings (bulletnet.analysis.metrics.element_tension,
+    # element_kinds; the tow's net is slack, the capture's has no tether), and the colour law
+    # of thread_colours on the tether's scale
+    from bulletnet.model.net import ElementKind
+    from bulletnet.viewer.server import LiveViewer
+
+    recs = [bn.open_recording(p) for p in (viewer_tow, runs["capture"])]
+    replay = load_replay([viewer_tow, runs["capture"]])
+    for name, kinds in (("net", [ElementKind.NET, ElementKind.CORNER]),
+                        ("tether", [ElementKind.TETHER])):
+        taut = np.concatenate([
+            t[t > 0] for t in (bn.metrics.element_tension(rec)[:, np.isin(
+                bn.metrics.element_kinds(rec), kinds)] for rec in recs)])
+        assert replay.tension_scale[name] == pytest.approx(np.percentile(taut, 99), rel=1e-12)
+    assert set(replay.tension_scale) == {"net", "tether"}
+    tension = bn.metrics.element_tension(recs[0])
+    scale = np.where(bn.metrics.element_kinds(recs[0]) == ElementKind.TETHER,
+                     replay.tension_scale["tether"], replay.tension_scale["net"])
+    with viser_server() as server:
+        viewer = LiveViewer(server, replay, [0.1])
+        np.testing.assert_array_equal(viewer.layers[0].force_scale["tension"], scale)
+        np.testing.assert_array_equal(viewer.layers[0].threads.colors,
+                                      thread_colours(tension[0], scale, replay.tracks[0].colour))
+
+
+def test_failed_threads_drawn_as_red_stubs_and_counted(viewer_broken):
+    # reference: the recorded failure times (/threads/failure_time, -1: intact): a thread has
+    # failed at a frame after the step it failed in, the frame's time over its failure time;
+    # at the end the count is bulletnet.analysis.metrics.breakage's
+    from bulletnet.viewer.replay import FAILED, STUB, segment_colours, segment_points
+
+    with h5py.File(viewer_broken) as f:
+        failure_time, position = f["threads/failure_time"][()], f["nodes/position"][()]
+        time, pairs = f["time"][()], f["threads/pairs"][()]
+    replay = load_replay([viewer_broken])
+    track, panel = replay.tracks[0], Panel(replay, [0.1])
+    breaks = np.flatnonzero(failure_time >= 0)
+    assert breaks.size and replay.has_breakage
+    np.testing.assert_array_equal(track.breakable, breaks)
+    intact = np.setdiff1d(np.arange(pairs.shape[0]), breaks)
+    for j in range(time.size):
+        failed = (failure_time >= 0) & (time[j] > failure_time)
+        points = segment_points(track, j)
+        colours = segment_colours(track, j, track.tension[j], replay.tension_scale["net"])
+        a, b = position[j, pairs[:, 0]], position[j, pairs[:, 1]]
+        np.testing.assert_array_equal(points[intact], np.stack([a, b], axis=1)[intact])
+        # the threads that fail: two halves while intact, two stubs once failed
+        length = np.where(failed[breaks], STUB, 0.5)[:, None]
+        a, b = a[breaks], b[breaks]
+        np.testing.assert_allclose(points[breaks], np.stack([a, a + length * (b - a)], axis=1),
+                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(points[pairs.shape[0]:],
+                                   np.stack([b, b + length * (a - b)], axis=1),
+                                   rtol=0, atol=1e-12)
+        red = np.all(colours[:, 0] == FAILED, axis=1)
+        np.testing.assert_array_equal(red, np.concatenate([failed, failed[breaks]]))
+        assert panel.updates(j)["failed-count"]["text"] == f"failed threads: {failed.sum()}"
+    broken = bn.metrics.breakage(bn.open_recording(viewer_broken))["broken_threads"]
+    assert panel.updates(time.size - 1)["failed-count"]["text"] == f"failed threads: {broken}"
+
+
+def test_html_export_of_a_tow_ships_the_tow_panel_first(viewer_tow, tmp_path):
+    # reference: the panels' own frames (TowPanel.updates, Panel.updates) at every frame
+    import json
+
+    from bulletnet.viewer import export_html
+    from bulletnet.viewer.panel import TowPanel
+
+    replay = load_replay([viewer_tow])
+    page = export_html(replay, tmp_path / "tow.html", [0.1]).read_text()
+    data = json.loads(page.split("window.__BULLETNET__=", 1)[1].split(";</script>", 1)[0])
+    assert [p["title"] for p in data["panels"]] == ["Tow", "Mouth"]
+    for shipped, panel in zip(data["panels"], (TowPanel(replay), Panel(replay, [0.1])),
+                              strict=True):
+        assert shipped["svg"] == panel.svg(0)
+        for k in range(replay.time.size):
+            update = panel.updates(k)
+            assert shipped["values"][k] == [update[i][a] for i, a in shipped["fields"]]

@@ -154,3 +154,21 @@ def test_live_server_draws_plays_and_hides_missing_controls(browser, runs, empty
         proc.terminate()
         _, err = proc.communicate(timeout=30)
     assert proc.returncode == 0, err
+
+
+def test_exported_tow_shows_its_panel_over_the_folded_mouth_panel(browser, viewer_tow,
+                                                                  tmp_path):
+    from bulletnet.viewer import export_html, load_replay
+
+    out = export_html(load_replay([viewer_tow]), tmp_path / "tow.html", [0.1])
+    page, errors = open_page(browser, out.as_uri())
+    page.wait_for_selector("#bulletnet-tow #value-tension")
+    assert not page.is_visible("#bulletnet-mouth")
+    # the burn starts at 0.2 s of the 0.5 s replay, which plays and loops
+    wait_for(lambda: page.text_content("#value-thrust") != "- [N]", 30,
+             "the thrust read out during the burn")
+    wait_for(lambda: page.text_content("#tow-time-label") == page.text_content("#time-label"),
+             5, "both panels at one frame")
+    page.click("summary:has-text('Mouth')")
+    page.wait_for_selector("#bulletnet-mouth", state="visible")
+    assert errors == []

@@ -1,23 +1,29 @@
-// The mouth panel of a bulletnet HTML replay, kept in step with viser's playback bar.
-// window.__BULLETNET__ (written by `bulletnet view --html`) holds:
+// The panels of a bulletnet HTML replay (the tow panel for a tow, the mouth panel), kept in
+// step with viser's playback bar. window.__BULLETNET__ (written by `bulletnet view --html`)
+// holds:
 //   time:   master sample times from the start of the replay [s], shape (K,)
-//   svg:    the panel at frame 0 (bulletnet/viewer/panel.py draws it)
-//   fields: [element id, attribute] pairs that change from frame to frame
-//   values: values[k][i] is fields[i] at frame k
+//   panels: each with its title, its svg at frame 0 (bulletnet/viewer/panel.py draws it),
+//           its fields, the [element id, attribute] pairs that change from frame to frame,
+//           and its values: values[k][i] is fields[i] at frame k
+// The first panel is open, the others folded (a click on a title opens or folds it).
 (function () {
   "use strict";
   const data = window.__BULLETNET__;
   const box = document.createElement("div");
   box.id = "bulletnet-panel";
   box.innerHTML =
-    '<div class="bulletnet-head"><b>Mouth</b>' +
+    '<div class="bulletnet-head"><b>bulletnet</b>' +
     '<span><button id="bulletnet-prev" title="previous frame">&#9664;</button>' +
     '<button id="bulletnet-next" title="next frame">&#9654;</button>' +
-    '<button id="bulletnet-fold" title="hide or show the panel">&#8211;</button></span></div>' +
-    '<div class="bulletnet-body">' + data.svg + "</div>";
+    '<button id="bulletnet-fold" title="hide or show the panels">&#8211;</button></span></div>' +
+    '<div class="bulletnet-body">' +
+    data.panels.map((panel, i) => "<details" + (i === 0 ? " open" : "") + "><summary>" +
+                    panel.title + "</summary>" + panel.svg + "</details>").join("") +
+    "</div>";
   document.body.appendChild(box);
 
-  const elements = data.fields.map(([id]) => document.getElementById(id));
+  const elements = data.panels.map((panel) =>
+    panel.fields.map(([id]) => document.getElementById(id)));
   let shown = 0;
 
   function frameAt(t) {  // last frame at or before t
@@ -30,10 +36,12 @@
   }
 
   function draw(k) {
-    const row = data.values[k];
-    data.fields.forEach(([, attr], i) => {
-      if (attr === "text") elements[i].textContent = row[i];
-      else elements[i].setAttribute(attr, row[i]);
+    data.panels.forEach((panel, p) => {
+      const row = panel.values[k];
+      panel.fields.forEach(([, attr], i) => {
+        if (attr === "text") elements[p][i].textContent = row[i];
+        else elements[p][i].setAttribute(attr, row[i]);
+      });
     });
     shown = k;
   }

@@ -43,7 +43,8 @@ corner threads, a bridle's lines, the tether's, by their ends' kinds:
   before) and the peak tension of the taut spell each begins (:func:`snap_loads`).
 - with ``strength.breakage`` on, what failed: the count, the first failure's time, kind
   and element, and the elastic energy lost at the failures (:func:`breakage`, from the
-  recorded failure times, to the step).
+  recorded failure times, to the step), and which elements have failed by each frame
+  (:func:`failed`).
 
 All from the recorded frames. A recording of the fast or bullet engine carries each
 element's largest tension in every step since the frame before (``peak_tension``), and the
@@ -232,11 +233,11 @@ def score_geometry(rec: Recording) -> ScoreGeometry:
     if samples is None:
         from ..model.builder import scene_debris
 
-        samples = interior_samples(scene_debris(_scene(rec)))
+        samples = interior_samples(scene_debris(recorded_scene(rec)))
     return ScoreGeometry.of(rec, samples, d["attrs"]["center_of_mass"])
 
 
-def _scene(rec: Recording):
+def recorded_scene(rec: Recording):
     """The scene a recording ran (its ``scenario`` attribute)."""
     from ..model.scenario import loads
 
@@ -250,7 +251,7 @@ def capture_outcome(rec: Recording) -> tuple[np.ndarray, OutcomeMonitor]:
     (a run that judged itself recorded the same ``outcome`` and ``outcome_time_s``)."""
     d = _require(rec, "debris")
     count = _require(rec, "contacts")["count"]
-    monitor = OutcomeMonitor(_scene(rec).outcome, score_geometry(rec))
+    monitor = OutcomeMonitor(recorded_scene(rec).outcome, score_geometry(rec))
     scores = np.array([monitor.observe(float(rec.time[k]), rec.position[k], rec.velocity[k],
                                        d["position"][k], d["orientation"][k],
                                        d["velocity"][k], int(count[k]))
@@ -264,7 +265,7 @@ def thrust_profile(rec: Recording):
     scene's ``[thrust]``, its start ``thrust_start_s`` [s] and the axial mode it recorded."""
     from ..model.thrust import ThrustProfile
 
-    return ThrustProfile(_scene(rec).thrust, float(rec.attrs["thrust_start_s"]),
+    return ThrustProfile(recorded_scene(rec).thrust, float(rec.attrs["thrust_start_s"]),
                          float(rec.attrs["thrust_axial_frequency_rad_s"]),
                          float(rec.attrs["thrust_damping_ratio"]))
 
@@ -298,12 +299,13 @@ def tow_series(rec: Recording) -> dict:
     }
 
 
-def tow_outcome(rec: Recording) -> TowMonitor:
+def tow_outcome(rec: Recording, series: dict | None = None) -> TowMonitor:
     """The tow judged again from the recorded frames by the recording's own ``[tow]`` rules
-    (:func:`tow_series`): the same judge on the same frames as the run's, so a run that
-    judged its tow recorded the same ``tow_*`` attributes."""
-    series = tow_series(rec)
-    monitor = TowMonitor(_scene(rec).tow)
+    (:func:`tow_series`, or ``series`` if it is already at hand): the same judge on the same
+    frames as the run's, so a run that judged its tow recorded the same ``tow_*``
+    attributes."""
+    series = tow_series(rec) if series is None else series
+    monitor = TowMonitor(recorded_scene(rec).tow)
     for k in range(series["time"].size):
         monitor.update(*(float(series[key][k]) for key in
                          ("time", "tension", "distance", "enclosed", "rate")))
@@ -344,6 +346,23 @@ def energy(rec: Recording) -> np.ndarray:
     return total
 
 
+def failure_times(rec: Recording) -> np.ndarray | None:
+    """When each element (the threads, then the closing cables) failed [s], -1 if intact,
+    shape (P + C,); None for a recording without breakage."""
+    if rec.failure_time is None:
+        return None
+    cables = np.zeros(0) if rec.cables is None else rec.cables["failure_time"]
+    return np.concatenate([rec.failure_time, cables])
+
+
+def failed(rec: Recording) -> np.ndarray | None:
+    """Whether each element (the threads, then the closing cables) has failed by each frame
+    [-], bool, shape (T, P + C): after the step it failed in (:func:`failure_times`); None
+    for a recording without breakage."""
+    times = failure_times(rec)
+    return None if times is None else _failed(rec.time, times)
+
+
 def _failed(time: np.ndarray, failure_time: np.ndarray) -> np.ndarray:
     """Whether each element has failed by each frame [-], shape (T, E), from the frame
     times (T,) and the failure times (E,) [s] (-1: intact): after the step it failed in."""
@@ -371,7 +390,7 @@ def thrust_work(rec: Recording) -> np.ndarray:
     if start < 0:
         return work
     profile = thrust_profile(rec)
-    direction = np.asarray(_scene(rec).thrust.direction, dtype=float)
+    direction = np.asarray(recorded_scene(rec).thrust.direction, dtype=float)
     moved = np.diff(rec.position[:, -1], axis=0) @ (direction / np.linalg.norm(direction))
     force = np.array([profile.mean(a, b)
                       for a, b in zip(rec.time[:-1], rec.time[1:], strict=True)])
@@ -434,7 +453,7 @@ def breaking_tension(rec: Recording) -> np.ndarray:
         return np.concatenate([rec.breaking_tension, *cables])
     from ..model.builder import build_model
 
-    model = build_model(_scene(rec))
+    model = build_model(recorded_scene(rec))
     if not np.array_equal(model.pairs, rec.pairs):
         raise RecordingError(f"{rec.path}: its scene builds other threads than it recorded; "
                              "cannot tell their strength")
@@ -597,8 +616,9 @@ def failures(thread_time: np.ndarray, cable_time: np.ndarray, kinds: np.ndarray,
 def breakage(rec: Recording) -> dict | None:
     """What failed in a run with ``strength.breakage`` on (:func:`failures`, from its
     recorded failure times and attributes); None for a recording without breakage."""
-    if rec.failure_time is None:
+    times = failure_times(rec)
+    if times is None:
         return None
-    cables = np.zeros(0) if rec.cables is None else rec.cables["failure_time"]
-    return failures(rec.failure_time, cables, thread_kinds(rec.pairs, rec.kind),
+    threads = rec.pairs.shape[0]
+    return failures(times[:threads], times[threads:], thread_kinds(rec.pairs, rec.kind),
                     float(rec.attrs.get("broken_energy_J", 0.0)))

@@ -217,7 +217,7 @@ def _tow(plt, recs, styles):
     fraction with its threshold and the debris' angular speed; the outcome where decided."""
     fig, axes = plt.subplots(4, 1, figsize=(6.5, 9), sharex=True)
     for rec, style in zip(recs, styles, strict=False):
-        series, rules = metrics.tow_series(rec), metrics._scene(rec).tow
+        series, rules = metrics.tow_series(rec), metrics.recorded_scene(rec).tow
         t = series["time"]
         axes[0].plot(t, series["tension"], style, color="C0", label=f"tether, {_label(rec)}")
         axes[0].plot(t, series["thrust"], style, color="C3", lw=0.8,

@@ -1,6 +1,7 @@
 """Self-contained HTML replays: the scene recorded frame by frame through viser's scene
-serializer into viser's own single-file client, plus the mouth panel (``web/overlay.js``,
-``web/overlay.css``), and an ``index.html`` beside them listing every replay in the folder.
+serializer into viser's own single-file client, plus the panels (the tow panel for a tow,
+then the mouth panel; ``web/overlay.js``, ``web/overlay.css``), and an ``index.html`` beside
+them listing every replay in the folder.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from pathlib import Path
 
 from ..common.errors import ScenarioError
 from ..common.resources import data_dir
-from .panel import Panel
+from .panel import Panel, TimePanel, TowPanel
 from .replay import Replay
 from .scene import build_scene, viser_server
 
@@ -39,16 +40,19 @@ def scene_html(replay: Replay) -> str:
         return serializer.as_html()
 
 
-def panel_data(replay: Replay, panel: Panel) -> dict:
-    """What ``overlay.js`` needs: times from the start [s], the panel, its changes by frame."""
-    first = panel.updates(0)
-    fields = [(ident, attr) for ident, attrs in first.items() for attr in attrs]
-    values = []
-    for k in range(replay.time.size):
-        update = panel.updates(k)
-        values.append([update[i][a] for i, a in fields])
-    return {"time": (replay.time - replay.time[0]).round(9).tolist(), "svg": panel.svg(0),
-            "fields": fields, "values": values}
+def panel_data(replay: Replay, panels: dict[str, TimePanel]) -> dict:
+    """What ``overlay.js`` needs: times from the start [s], and each panel by title: its SVG
+    and its changes by frame."""
+    out = []
+    for title, panel in panels.items():
+        first = panel.updates(0)
+        fields = [(ident, attr) for ident, attrs in first.items() for attr in attrs]
+        values = []
+        for k in range(replay.time.size):
+            update = panel.updates(k)
+            values.append([update[i][a] for i, a in fields])
+        out.append({"title": title, "svg": panel.svg(0), "fields": fields, "values": values})
+    return {"time": (replay.time - replay.time[0]).round(9).tolist(), "panels": out}
 
 
 def export_html(replay: Replay, out: str | Path, snapshots: list[float],
@@ -71,7 +75,9 @@ def export_html(replay: Replay, out: str | Path, snapshots: list[float],
     head = (f'<meta name="{META}" content="{escape(json.dumps(summary))}">'
             f"<title>bulletnet: {escape(title)}</title>"
             f"<style>{(WEB / 'overlay.css').read_text()}</style>")
-    data = json.dumps(panel_data(replay, Panel(replay, snapshots)), separators=(",", ":"))
+    panels = {"Tow": TowPanel(replay)} if replay.has_tow else {}
+    panels["Mouth"] = Panel(replay, snapshots)
+    data = json.dumps(panel_data(replay, panels), separators=(",", ":"))
     data = data.replace("</", "<\\/")  # no "</script>" inside the script
     body = (f"<script>window.__BULLETNET__={data};</script>"
             f"<script>{(WEB / 'overlay.js').read_text()}</script>")

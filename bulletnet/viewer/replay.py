@@ -1,7 +1,8 @@
 """What a replay shows, as arrays: recordings decimated onto one shared timeline, the capture
-groups (debris pose and mesh, contacts) when a recording has them, the paper's measures and
-the capture score and outcome from :mod:`bulletnet.analysis.metrics`, and the colours. No viser
-here: the live server and the HTML export both draw from a :class:`Replay`.
+groups (debris pose and mesh, contacts) when a recording has them, the paper's measures, the
+capture score and outcome, the tow and the failed threads from
+:mod:`bulletnet.analysis.metrics`, and the colours and line geometry drawn. No viser here: the
+live server and the HTML export both draw from a :class:`Replay`.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import numpy as np
 
 from ..analysis import metrics
 from ..common.errors import RecordingError, ScenarioError
-from ..model.net import NodeKind
+from ..model.net import ElementKind, NodeKind
 from ..recording.reader import Recording, open_recording
 
 PALETTE = ((31, 119, 180), (230, 97, 1), (44, 160, 44), (148, 103, 189))
@@ -21,8 +22,25 @@ SLACK = (205, 205, 205)
 """Colour of a slack thread (tension 0) [RGB 0-255]."""
 CONTACT = (255, 0, 200)
 """Colour of a node touching the debris [RGB 0-255]."""
+FAILED = (215, 25, 28)
+"""Colour of a failed thread's stubs [RGB 0-255]."""
 SATURATION_PERCENTILE = 99.0
 """Thread colours saturate at this percentile of the positive forces of all recordings [%]."""
+STUB = 0.25
+"""A failed thread is drawn as two stubs from its end nodes, each this fraction of the
+distance between them long [-]."""
+SCALES = {"net": (ElementKind.NET, ElementKind.CORNER), "tether": (ElementKind.TETHER,
+                                                                  ElementKind.BRIDLE),
+          "cables": (ElementKind.CABLE,)}
+"""Kinds of element whose tension colours share a scale, by name: the net's threads carry
+tens of N where a tow loads the tether with hundreds of N to kN and the winches the closing
+cables with up to tens of kN."""
+CHASER_SIZE = 2.0
+"""Edge of the cube drawn for a free chaser [m]: a symbol, seen from tens of metres; in the
+model the chaser is a point mass."""
+THRUST_LENGTH = 10.0
+"""Length of the thrust arrow at the largest thrust of its recording [m]; shorter in
+proportion for less."""
 
 
 @dataclass(frozen=True)
@@ -49,6 +67,31 @@ class ContactTrack:
     """Total normal contact force [N], shape (T,)."""
     node_force: np.ndarray
     """Normal contact force on each node [N], shape (T, N)."""
+
+
+@dataclass(frozen=True)
+class TowTrack:
+    """The tow (:func:`bulletnet.analysis.metrics.tow_series` and ``tow_outcome``) at the
+    track's frames; NaN at the frames before the burn's start."""
+
+    thrust: np.ndarray
+    """Thrust, the profile's mean over the interval to the next recorded frame [N], shape
+    (T,)."""
+    tension: np.ndarray
+    """The tether's tension at the chaser [N], shape (T,)."""
+    distance: np.ndarray
+    """Chaser to the debris' centre of mass [m], shape (T,)."""
+    enclosed: np.ndarray
+    """The debris' enclosed fraction [-], shape (T,)."""
+    direction: np.ndarray
+    """Unit direction of the thrust in the scene [-], shape (3,)."""
+    safe_distance: float | None
+    """``tow.safe_distance`` [m]; None without ``[tow]``."""
+    slip_fraction: float | None
+    """``tow.enclosed_fraction``, below which the debris has slipped out [-]; None without
+    ``[tow]``."""
+    outcome: str
+    """The tow's outcome and when it was decided, as text; "" without ``[tow]``."""
 
 
 @dataclass(frozen=True)
@@ -88,6 +131,20 @@ class Track:
     None without debris and contacts (:func:`bulletnet.analysis.metrics.capture_outcome`)."""
     outcome: str = ""
     """The capture's outcome and when it was decided, as text; "" without a score."""
+    element: np.ndarray | None = None
+    """:class:`~bulletnet.model.net.ElementKind` of each segment's element [-], shape (P,)."""
+    chaser: bool = False
+    """Whether the last node is a free chaser (``tether.chaser_mass`` > 0), drawn as a cube
+    of :data:`CHASER_SIZE`."""
+    tow: TowTrack | None = None
+    """The tow, for a recording whose burn or tow was on; else None."""
+    failed: np.ndarray | None = None
+    """Whether each segment's element has failed by each frame
+    (:func:`bulletnet.analysis.metrics.failed`) [-], bool, shape (T, P); None without
+    breakage."""
+    failures: np.ndarray | None = None
+    """Threads and closing cables failed by each frame [-], shape (T, 2); None without
+    breakage."""
 
     @property
     def quality(self) -> np.ndarray | None:
@@ -101,8 +158,18 @@ class Track:
 
     @property
     def net_nodes(self) -> np.ndarray:
-        """Indices of every node but the corner masses [-], shape (N - 4,)."""
-        return np.nonzero(self.kind != NodeKind.CORNER_MASS)[0]
+        """Indices of every node drawn as a sphere: all but the corner masses and a free
+        chaser [-]."""
+        drawn = self.kind != NodeKind.CORNER_MASS
+        drawn[-1] &= not self.chaser
+        return np.nonzero(drawn)[0]
+
+    @property
+    def breakable(self) -> np.ndarray:
+        """Segments whose element fails by the last frame [-], shape (B,)."""
+        if self.failed is None:
+            return np.zeros(0, dtype=int)
+        return np.flatnonzero(self.failed[-1])
 
 
 @dataclass(frozen=True)
@@ -115,9 +182,10 @@ class Replay:
     index: np.ndarray
     """Frame of each track at each master time: its last frame at or before it [-],
     shape (R, K)."""
-    tension_scale: float
-    """Tension at which thread colours saturate [N]."""
-    shear_scale: float | None
+    tension_scale: dict[str, float]
+    """Tension at which line colours saturate [N], by kind of line (:data:`SCALES`; those
+    some track has)."""
+    shear_scale: float | None = None
     """Shear force at which thread colours saturate [N]; None when no track has bending."""
 
     @property
@@ -135,6 +203,18 @@ class Replay:
     @property
     def has_bending(self) -> bool:
         return self.shear_scale is not None
+
+    @property
+    def has_chaser(self) -> bool:
+        return any(t.chaser for t in self.tracks)
+
+    @property
+    def has_tow(self) -> bool:
+        return any(t.tow is not None for t in self.tracks)
+
+    @property
+    def has_breakage(self) -> bool:
+        return any(t.failed is not None for t in self.tracks)
 
     def view_box(self) -> tuple[np.ndarray, np.ndarray]:
         """Lowest and highest corners of what the initial camera frames [m], shape (3,) each:
@@ -219,18 +299,54 @@ def segments(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
             np.concatenate([np.arange(threads), threads + cable]))
 
 
+def _outcome_text(outcome: str, time: float) -> str:
+    """An outcome and when it was decided [s] (negative: undecided), for legends."""
+    return f"{outcome} at {time:.1f} s" if time >= 0 else outcome
+
+
+def read_tow(rec: Recording, frames: np.ndarray, scene) -> TowTrack | None:
+    """The tow of ``rec`` (its ``scene``) at the given frame indices; None for a recording
+    without a burn or a tow."""
+    if "tow_outcome" not in rec.attrs and rec.attrs.get("thrust_start_s", -1.0) < 0:
+        return None
+    series = metrics.tow_series(rec)
+    at = np.searchsorted(rec.time, series["time"])  # the recording's frames of the series
+    full = {}
+    for key in ("thrust", "tension", "distance", "enclosed"):
+        full[key] = np.full(rec.time.size, np.nan)
+        full[key][at] = series[key]
+    safe = slip = None
+    outcome = ""
+    if scene.tow.enabled:
+        judged = metrics.tow_outcome(rec, series)
+        safe, slip = judged.rules.safe_distance, judged.rules.enclosed_fraction
+        outcome = _outcome_text(judged.outcome, judged.time)
+    direction = np.asarray(scene.thrust.direction, dtype=np.float64)
+    return TowTrack(**{key: value[frames] for key, value in full.items()},
+                    direction=direction / np.linalg.norm(direction), safe_distance=safe,
+                    slip_fraction=slip, outcome=outcome)
+
+
 def make_track(rec: Recording, colour: tuple[int, int, int], every: int) -> Track:
     """``rec`` decimated to every ``every``-th frame (its last frame always kept)."""
     frames = np.unique(np.append(np.arange(0, rec.time.size, every), rec.time.size - 1))
     bending = rec.orientation is not None
+    scene = metrics.recorded_scene(rec)
     debris, contacts = read_capture(rec, frames)
     score, outcome = None, ""
     if debris is not None and contacts is not None:
         scores, judged = metrics.capture_outcome(rec)
         score = scores[frames]
-        outcome = (f"{judged.outcome} at {judged.time:.1f} s" if judged.decided
-                   else judged.outcome)
+        outcome = _outcome_text(judged.outcome, judged.time if judged.decided else -1.0)
     pairs, element = segments(rec)
+    failed = metrics.failed(rec)
+    failures = None
+    if failed is not None:
+        failed = failed[frames]
+        threads = rec.pairs.shape[0]
+        failures = np.stack([failed[:, :threads].sum(axis=1), failed[:, threads:].sum(axis=1)],
+                            axis=1)
+        failed = failed[:, element]
     tension = metrics.element_tension(rec)[frames][:, element]
     shear = np.zeros_like(tension)  # cables carry no shear
     shear[:, :rec.shear.shape[1]] = rec.shear[frames]
@@ -242,7 +358,11 @@ def make_track(rec: Recording, colour: tuple[int, int, int], every: int) -> Trac
         radius=rec.radius, kind=rec.kind, pairs=pairs,
         mouth=metrics.mouth(rec)[frames], area=metrics.mouth_area(rec)[frames],
         height=metrics.net_height(rec)[frames], debris=debris, contacts=contacts,
-        score=score, outcome=outcome)
+        score=score, outcome=outcome,
+        element=metrics.element_kinds(rec)[element],
+        chaser=bool(rec.kind[-1] == NodeKind.CHASER and scene.tether.chaser_mass > 0),
+        tow=read_tow(rec, frames, scene) if debris is not None else None,
+        failed=failed, failures=failures)
 
 
 def _scale(values: list[np.ndarray]) -> float:
@@ -263,21 +383,75 @@ def load_replay(paths: list, every: int = 1) -> Replay:
     index = np.array([np.clip(np.searchsorted(t.time, time + 1e-9, side="right") - 1,
                               0, t.time.size - 1) for t in tracks])
     shears = [t.shear for t in tracks if t.shear is not None]
+    lines = {name: [t.tension[:, np.isin(t.element, kinds)] for t in tracks]
+             for name, kinds in SCALES.items()}
     return Replay(tracks=tracks, time=time, index=index,
-                  tension_scale=_scale([t.tension for t in tracks]),
+                  tension_scale={name: _scale(tensions) for name, tensions in lines.items()
+                                 if any(v.shape[1] for v in tensions)},
                   shear_scale=_scale(shears) if shears else None)
 
 
-def thread_colours(force: np.ndarray, scale: float, colour: tuple[int, int, int]) -> np.ndarray:
+def tension_scales(track: Track, scales: dict[str, float]) -> np.ndarray:
+    """The tension at which each of ``track``'s segments saturates (``scales``:
+    :attr:`Replay.tension_scale`) [N], shape (P,)."""
+    out = np.empty(track.element.size)
+    for name, kinds in SCALES.items():
+        lines = np.isin(track.element, kinds)
+        if lines.any():
+            out[lines] = scales[name]
+    return out
+
+
+def thread_colours(force: np.ndarray, scale, colour: tuple[int, int, int]) -> np.ndarray:
     """Per-vertex colours of threads carrying ``force`` [N], shape (P,): from a light tint of
-    ``colour`` at small force to its dark shade at ``scale`` [N] and above, by the square root
-    of force / scale (tensions span decades); slack (0) grey. uint8 RGB, shape (P, 2, 3)."""
+    ``colour`` at small force to its dark shade at ``scale`` [N] (one for all, or each
+    thread's, shape (P,)) and above, by the square root of force / scale (tensions span
+    decades); slack (0) grey. uint8 RGB, shape (P, 2, 3)."""
     base = np.asarray(colour, dtype=np.float64)
     light, dark = 0.8 * base + 0.2 * 255.0, 0.45 * base
     ratio = np.sqrt(np.clip(force / scale, 0.0, 1.0))[:, None]
     rgb = light + ratio * (dark - light)
     rgb[force <= 0] = SLACK
     return np.repeat(np.rint(rgb).astype(np.uint8)[:, None, :], 2, axis=1)
+
+
+def segment_points(track: Track, j: int) -> np.ndarray:
+    """The line segments drawn at frame ``j`` [m], shape (P + B, 2, 3): every thread and
+    cable span from end node to end node, except the B that fail during the recording
+    (:attr:`Track.breakable`), drawn as two segments from their end nodes: intact, the two
+    halves; failed, two stubs of :data:`STUB` of the distance between the nodes. The first
+    stays in the segment's place, the second is appended."""
+    points = track.position[j][track.pairs]
+    if track.failed is None:
+        return points
+    b = track.breakable
+    first, second = points[b, 0], points[b, 1]
+    length = np.where(track.failed[j, b], STUB, 0.5)[:, None]
+    points[b, 1] = first + length * (second - first)
+    ends = np.stack([second, second + length * (first - second)], axis=1)
+    return np.concatenate([points, ends])
+
+
+def segment_colours(track: Track, j: int, force: np.ndarray, scale) -> np.ndarray:
+    """Per-vertex colours of :func:`segment_points` at frame ``j``: by ``force`` [N], shape
+    (P,), on ``scale`` [N] (:func:`thread_colours`), failed ones :data:`FAILED`. uint8 RGB,
+    shape (P + B, 2, 3)."""
+    rgb = thread_colours(force, scale, track.colour)
+    if track.failed is not None:
+        rgb[track.failed[j]] = FAILED
+    return np.concatenate([rgb, rgb[track.breakable]])
+
+
+def thrust_arrow(track: Track, j: int) -> np.ndarray | None:
+    """The thrust at frame ``j`` as an arrow [m], shape (1, 2, 3): from the face of the
+    chaser's cube along the thrust direction, :data:`THRUST_LENGTH` at the recording's
+    largest thrust and in proportion below; None while the burn is off."""
+    tow = track.tow
+    if tow is None or not tow.thrust[j] > 0:
+        return None
+    start = track.position[j, -1] + 0.5 * CHASER_SIZE * tow.direction
+    length = THRUST_LENGTH * tow.thrust[j] / np.nanmax(tow.thrust)
+    return np.stack([start, start + length * tow.direction])[None]
 
 
 def node_colours(track: Track, frame: int, nodes: np.ndarray) -> np.ndarray:

@@ -1,9 +1,11 @@
 """The 3D scene of a replay on a viser server: per recording, its nodes as spheres at their
-radius, its corner masses, its threads as line segments coloured by tension (or shear, or
-utilisation: tension over breaking tension, dark at the breaking tension), the
-corner masses' trails and the debris mesh. Geometry that does not change (sphere mesh, radii,
-debris mesh) is sent once; a new frame sends only what moved, and node colours only when the
-set of nodes in contact changes.
+radius, its corner masses, its threads as line segments coloured by tension (on a scale per
+kind of line: net, tether, closing cables; or shear, or utilisation: tension over breaking
+tension, dark at the breaking tension), failed threads as red stubs, the corner masses'
+trails, a free chaser as a cube with its thrust as an arrow while the burn is on, and the
+debris mesh. Geometry that does not change (sphere mesh, radii, debris mesh) is sent once; a
+new frame sends only what moved, and node colours only when the set of nodes in contact
+changes.
 """
 
 from __future__ import annotations
@@ -14,12 +16,23 @@ import io
 import numpy as np
 
 from ..common.errors import BulletnetError
-from .replay import Replay, Track, node_colours, thread_colours
+from .replay import (
+    CHASER_SIZE,
+    Replay,
+    Track,
+    node_colours,
+    segment_colours,
+    segment_points,
+    tension_scales,
+    thrust_arrow,
+)
 
 TRAIL_FRAMES = 60
 """Length of the corner masses' trails, in frames of the replay [-]."""
 THREAD_WIDTH = 2.0
 """Thread line width on screen [px]."""
+THRUST = (230, 145, 0)
+"""Colour of the thrust arrow [RGB 0-255]."""
 
 
 
@@ -52,8 +65,8 @@ class TrackLayer:
 
     def __init__(self, scene, replay: Replay, r: int):
         self.track: Track = replay.tracks[r]
-        self.force_scale = {"tension": replay.tension_scale, "shear": replay.shear_scale,
-                            "utilisation": 1.0}
+        self.force_scale = {"tension": tension_scales(self.track, replay.tension_scale),
+                            "shear": replay.shear_scale, "utilisation": 1.0}
         self.colour_by = "tension"
         self.frame = -1
         self._contact_key = None
@@ -75,6 +88,16 @@ class TrackLayer:
         self.trails = scene.add_line_segments(
             f"{name}/trails", self._trail_points(0), dark, thickness=1.5,
             thickness_units="screen")
+        self.chaser = self.thrust = None
+        if track.chaser:
+            self.chaser = scene.add_box(
+                f"{name}/chaser", color=dark, dimensions=(CHASER_SIZE,) * 3,
+                position=track.position[0, -1], cast_shadow=False, receive_shadow=False)
+            if track.tow is not None:
+                self.thrust = scene.add_arrows(
+                    f"{name}/thrust", np.zeros((1, 2, 3)), THRUST,
+                    shaft_radius=CHASER_SIZE / 8, head_radius=CHASER_SIZE / 3,
+                    head_length=CHASER_SIZE, visible=False)
         self.debris = None
         if track.debris is not None:
             d = track.debris
@@ -83,11 +106,11 @@ class TrackLayer:
                 flat_shading=True, wxyz=d.wxyz[0], position=d.position[0])
 
     def _thread_points(self, j: int) -> np.ndarray:
-        return self.track.position[j][self.track.pairs]
+        return segment_points(self.track, j)
 
     def _thread_colours(self, j: int) -> np.ndarray:
         force = getattr(self.track, self.colour_by)
-        return thread_colours(force[j], self.force_scale[self.colour_by], self.track.colour)
+        return segment_colours(self.track, j, force[j], self.force_scale[self.colour_by])
 
     def _trail_points(self, j: int) -> np.ndarray:
         path = self.track.position[max(0, j - TRAIL_FRAMES):j + 1, self.track.corner_masses]
@@ -116,6 +139,13 @@ class TrackLayer:
             self.threads.colors = self._thread_colours(j)
         if self.trails.visible:
             self.trails.points = self._trail_points(j)
+        if self.chaser is not None and self.chaser.visible:
+            self.chaser.position = track.position[j, -1]
+            if self.thrust is not None:
+                arrow = thrust_arrow(track, j)
+                if arrow is not None:
+                    self.thrust.points = arrow
+                self.thrust.visible = arrow is not None
         if self.debris is not None and self.debris.visible:
             self.debris.position = track.debris.position[j]
             self.debris.wxyz = track.debris.wxyz[j]
@@ -129,10 +159,11 @@ class TrackLayer:
         self.threads.colors = self._thread_colours(self.frame)
 
     def set_visible(self, part: str, visible: bool) -> None:
-        """Show or hide ``nodes`` (with the corner masses), ``threads``, ``trails`` or
-        ``debris``."""
+        """Show or hide ``nodes`` (with the corner masses), ``threads``, ``trails``,
+        ``chaser`` (with the thrust arrow) or ``debris``."""
         handles = {"nodes": [h for _, _, h in self.groups.values()],
                    "threads": [self.threads], "trails": [self.trails],
+                   "chaser": [h for h in (self.chaser, self.thrust) if h is not None],
                    "debris": [self.debris] if self.debris is not None else []}[part]
         for handle in handles:
             handle.visible = visible

@@ -1,21 +1,22 @@
-"""The live replay: a viser server on localhost with playback controls, visibility toggles and
-the mouth panel. Frames stream: each new frame sends only what moved (see :mod:`.scene`)."""
+"""The live replay: a viser server on localhost with playback controls, visibility toggles,
+the mouth panel and, for a tow, the tow panel. Frames stream: each new frame sends only what
+moved (see :mod:`.scene`)."""
 
 from __future__ import annotations
 
 import threading
 import time
 
-from .panel import Panel
-from .replay import SLACK, Replay
-from .scene import build_scene, viser_server
+from .panel import Panel, TowPanel
+from .replay import CHASER_SIZE, FAILED, SLACK, STUB, THRUST_LENGTH, Replay
+from .scene import THRUST, build_scene, viser_server
 
 SPEEDS = ("0.1", "0.25", "0.5", "1", "2", "4")
 """Playback speeds offered [simulated s per wall s]."""
 TICK = 1.0 / 30.0
 """Playback clock period [s]."""
 PANEL_INTERVAL = 0.1
-"""Shortest interval between two mouth panels sent while playing [s]."""
+"""Shortest interval between two panels sent while playing [s]."""
 
 
 class LiveViewer:
@@ -25,6 +26,7 @@ class LiveViewer:
         self.server, self.replay = server, replay
         self.layers = build_scene(server, replay)
         self.panel = Panel(replay, snapshots)
+        self.tow_panel = TowPanel(replay) if replay.has_tow else None
         self.frame = 0
         self.playing = False
         self.clock = float(replay.time[0])
@@ -50,7 +52,8 @@ class LiveViewer:
         self.controls = {}
         """Controls that depend on the recordings' groups, by name."""
         with gui.add_folder("Show"):
-            parts = ["nodes", "threads", "trails"] + (["debris"] if replay.has_debris else [])
+            parts = ["nodes", "threads", "trails"] + (["chaser"] if replay.has_chaser else []) \
+                + (["debris"] if replay.has_debris else [])
             for part in parts:
                 box = self.controls[part] = gui.add_checkbox(part, initial_value=True)
                 box.on_update(lambda event, part=part: self._show(part, event.target.value))
@@ -60,7 +63,10 @@ class LiveViewer:
             colour_by.on_update(lambda _: self._colour_by(colour_by.value))
             if replay.has_contacts:
                 self.controls["contacts"] = gui.add_text("contacts", "", disabled=True)
-        with gui.add_folder("Mouth"):
+        if self.tow_panel is not None:
+            with gui.add_folder("Tow"):
+                self.tow_html = gui.add_html(self.tow_panel.svg(0))
+        with gui.add_folder("Mouth", expand_by_default=self.tow_panel is None):
             self.panel_html = gui.add_html(self.panel.svg(0))
             times = gui.add_text("snapshots [s]", ", ".join(f"{s:g}" for s in
                                                              self.panel.snapshots))
@@ -73,10 +79,19 @@ class LiveViewer:
     def _legend(self) -> str:
         replay = self.replay
         lines = [f"**{t.label}**: rgb{t.colour}" for t in replay.tracks]
-        lines.append(f"Threads: slack rgb{SLACK}; taut light to dark up to "
-                     f"{replay.tension_scale:.3g} N tension"
+        scales = ", ".join(f"{scale:.3g} N ({name})" for name, scale in
+                           replay.tension_scale.items())
+        lines.append(f"Threads: slack rgb{SLACK}; taut light to dark up to {scales} tension"
                      + (f" ({replay.shear_scale:.3g} N shear)" if replay.has_bending else "")
                      + " (utilisation: up to the breaking tension)")
+        if replay.has_breakage:
+            lines.append(f"Failed threads: two stubs of {STUB:g} of their length, "
+                         f"rgb{FAILED}")
+        if replay.has_chaser:
+            lines.append(f"Chaser: a {CHASER_SIZE:g} m cube (a symbol: a point mass in the "
+                         "model)" + (f"; its thrust: an arrow rgb{THRUST}, {THRUST_LENGTH:g} m "
+                                     "long at its recording's largest thrust"
+                                     if replay.has_tow else ""))
         return "  \n".join(lines)
 
     def _show(self, part: str, visible: bool) -> None:
@@ -114,11 +129,13 @@ class LiveViewer:
                 for t, j in zip(self.replay.tracks, self.replay.index[:, k], strict=True))
         if not throttle or now - self._panel_sent >= PANEL_INTERVAL:
             self.panel_html.content = self.panel.svg(k)
+            if self.tow_panel is not None:
+                self.tow_html.content = self.tow_panel.svg(k)
             self._panel_sent = now
 
     def goto(self, k: int, playing: bool = False) -> None:
         """Show master frame ``k`` (clamped to the replay); nothing is sent if it is shown.
-        While ``playing``, the mouth panel is sent at most every :data:`PANEL_INTERVAL`."""
+        While ``playing``, the panels are sent at most every :data:`PANEL_INTERVAL`."""
         with self._lock:
             k = min(max(int(k), 0), self.replay.time.size - 1)
             if k == self.frame:
@@ -143,7 +160,7 @@ class LiveViewer:
         if self.playing:
             self.clock = float(self.replay.time[self.frame])
         else:
-            self._update_readouts()  # the panel may lag the frame while playing
+            self._update_readouts()  # the panels may lag the frame while playing
 
     def tick(self, elapsed: float) -> None:
         """Advance the playback clock by ``elapsed`` wall seconds [s] (looping at the end)."""
