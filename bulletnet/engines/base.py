@@ -250,6 +250,10 @@ class Engine(ABC):
             out.update(overlap_projections=int(a.projections[0]),
                        overlap_projected_m=float(a.projections[1]),
                        pair_list_builds=int(a.pair_meta[2]))
+            if a.solve is not None:
+                out.update(contact_sweeps=int(a.solve.stats[0]),
+                           contact_unconverged=int(a.solve.stats[1]),
+                           contact_candidates=int(a.solve.stats[2]))
         return out
 
     def close(self) -> None:  # noqa: B027 (optional hook; only bullet holds resources)

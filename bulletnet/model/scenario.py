@@ -136,6 +136,9 @@ class Launch:
     choice."""
 
 
+CONTACT_SOLVERS = ("sequential", "coupled")
+
+
 @dataclass(frozen=True)
 class Contact:
     enabled: bool = _f(False, "-")
@@ -153,6 +156,19 @@ class Contact:
     skin: float = _f(0.05, "m", ">0")
     """Margin of the self-contact pair list [m]: pairs closer than their radii plus this
     are tracked; the list is rebuilt when a node has moved 0.4 skin."""
+    solver: str = _f("sequential", "-", "choice", CONTACT_SOLVERS)
+    """How a step's contacts are solved: ``sequential`` solves each one once from its start
+    gap with the others held (node-node, then node-debris), removing an overlap the last
+    step did not predict by moving the node; ``coupled`` solves them all together by
+    projected Gauss-Seidel (to ``tolerance``, warm-started), absorbing such an overlap
+    instead (no work done): for stacked contacts, as in a cinched net (docs/capture.md,
+    "Contact"; needs ``model = "implicit"``)."""
+    tolerance: float = _f(1e-9, "m", ">0")
+    """Coupled solver: the sweeps stop when none changes any contact's end-of-step gap by
+    more than this [m]."""
+    sweeps: int = _f(500, "-", ">0")
+    """Coupled solver: most Gauss-Seidel sweeps in a step [-]; the steps that reach it are
+    counted (``stats_contact_unconverged``)."""
 
 
 @dataclass(frozen=True)
@@ -595,6 +611,9 @@ def _check_consistency(s: Scenario) -> None:
     if s.outcome.enabled and not (s.debris.asset and s.contact.enabled):
         raise ScenarioError(f"{s.source}: outcome.enabled: judging a capture needs debris "
                             "(debris.asset) and contact (contact.enabled)")
+    if s.contact.solver == "coupled" and s.contact.model != "implicit":
+        raise ScenarioError(f"{s.source}: contact.solver: 'coupled' solves the implicit law; "
+                            f"set contact.model = 'implicit' (got {s.contact.model!r})")
 
 
 def _check_orbit(s: Scenario) -> None:

@@ -35,12 +35,21 @@ from ..kernels.geometry import (
     PART_COLUMNS,
     SPHERE,
     debris_distance,
-    quat_matrix,
 )
 from ..model.materials import BODY_CLASSES, contact_table
 from ..model.mesh import MeshArrays, build, no_meshes
 from ..model.net import NetModel, NodeKind
 from ..model.scenario import Scenario
+from .contact_solve import (
+    SolveArrays,
+    add_debris_impulse,
+    carry_pairs,
+    coupled_stage,
+    debris_pose,
+    grown,
+    keep_pairs,
+    solve_arrays,
+)
 
 CLASS_OF_KIND = {NodeKind.CORNER_MASS: 1, NodeKind.CORNER: 2, NodeKind.EDGE: 3,
                  NodeKind.INNER: 4, NodeKind.TETHER: -1, NodeKind.CHASER: -1}
@@ -109,7 +118,11 @@ class ContactArrays(NamedTuple):
     pair_gap: np.ndarray
     """Gap each listed pair's last step predicted [m] (+inf: none), shape (C,)."""
     projections: np.ndarray
-    """Overlap projections: count [-], total distance [m], shape (2,)."""
+    """Overlap projections: count [-], total distance [m], shape (2,) (with the coupled
+    solve: overlaps absorbed into the contacts' references)."""
+    solve: SolveArrays | None = None
+    """The coupled solve's arrays (:mod:`bulletnet.solver.contact_solve`); None: the
+    sequential stage (which then compiles no solve)."""
 
 
 @dataclass
@@ -200,6 +213,8 @@ def setup(s: Scenario, model: NetModel, debris=None, enabled: bool = True) -> Co
         flags=np.array([has_debris, self_contact]),
         debris_gap=np.full(n, np.inf), pair_gap=np.full(capacity, np.inf),
         projections=np.zeros(2),
+        solve=(solve_arrays(s.contact.tolerance, s.contact.sweeps, n, capacity)
+               if on and s.contact.solver == "coupled" else None),
     )
     return ContactSetup(arrays=arrays, has_debris=has_debris, self_contact=self_contact)
 
@@ -209,7 +224,9 @@ def grow_pair_list(setup_: ContactSetup) -> ContactSetup:
     a = setup_.arrays
     pairs = np.zeros((2 * max(a.pairs.shape[0], 1), 2), dtype=np.int64)
     a.pair_meta[:] = 0
-    return ContactSetup(arrays=a._replace(pairs=pairs, pair_gap=np.full(pairs.shape[0], np.inf)),
+    solve = None if a.solve is None else grown(a.solve, a.node_class.shape[0], pairs.shape[0])
+    return ContactSetup(arrays=a._replace(pairs=pairs, pair_gap=np.full(pairs.shape[0], np.inf),
+                                          solve=solve),
                         has_debris=setup_.has_debris,
                         self_contact=setup_.self_contact)
 
@@ -282,12 +299,7 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
     imp, node_imp = contact.impulse, contact.node_impulse
     first, predicted, stats = contact.first_contact, contact.debris_gap, contact.projections
     slip = params[0]
-    rot = np.empty((3, 3))
-    quat_matrix(quat[0], rot)
-    origin = np.empty(3)
-    for a in range(3):
-        origin[a] = com[a] - (rot[a, 0] * com_body[0] + rot[a, 1] * com_body[1]
-                              + rot[a, 2] * com_body[2])
+    rot, origin = debris_pose(com, quat, com_body)
     w = wd[0]
     surface_speed = _norm(vd) + _norm(w) * bound[0]
     p0, n, r, vs, acc, tmp = (np.empty(3), np.empty(3), np.empty(3), np.empty(3),
@@ -345,12 +357,7 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
             vel[i, a] += tangential / m
             pos[i, a] += dt * tangential / m
             tmp[a] = -(jn * n[a] + tangential)  # impulse on the debris
-        imp[0] += tmp[0]
-        imp[1] += tmp[1]
-        imp[2] += tmp[2]
-        imp[3] += r[1] * tmp[2] - r[2] * tmp[1]
-        imp[4] += r[2] * tmp[0] - r[0] * tmp[2]
-        imp[5] += r[0] * tmp[1] - r[1] * tmp[0]
+        add_debris_impulse(imp, r, tmp)
         node_imp[i] += jn
         if first[0] < 0.0:
             first[0] = t + dt
@@ -364,6 +371,8 @@ def build_pairs(pos, radius, contact):
     skin = contact.params[1]
     pairs, meta, ref = contact.pairs, contact.pair_meta, contact.build_position
     cls = contact.node_class
+    old_count = meta[0]
+    keep_pairs(contact.solve, pairs, old_count, contact.pair_gap)
     order = np.argsort(pos[:, 0])
     largest = 0.0
     for i in range(pos.shape[0]):
@@ -395,6 +404,7 @@ def build_pairs(pos, radius, contact):
         for a in range(3):
             ref[i, a] = pos[i, a]
     contact.pair_gap[:] = np.inf
+    carry_pairs(contact.solve, pairs, count, old_count, contact.pair_gap, pos.shape[0])
     return True
 
 
@@ -486,13 +496,24 @@ def self_stage(pos, vel, dv, mass, radius, contact, dt, t):
 
 @nb.njit(cache=True, error_model="numpy")
 def contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
-    """Debris contact, self-contact, then the debris' rigid motion over the step (constant
-    velocity)."""
+    """Self-contact, debris contact (sequentially, or together with the coupled solve:
+    ``contact.solve``), then the debris' rigid motion over the step (constant velocity)."""
+    _stages(pos, vel, dv, mass, radius, fixed, contact, contact.solve, dt, t)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _stages(pos, vel, dv, mass, radius, fixed, contact, solve, dt, t):
+    """:func:`contact_stage` with its solve as an argument (None: the sequential stages;
+    numba prunes the other branch, so a scene compiles only its own)."""
     flags = contact.flags
-    if flags[1]:
-        self_stage(pos, vel, dv, mass, radius, contact, dt, t)
+    if solve is None:
+        if flags[1]:
+            self_stage(pos, vel, dv, mass, radius, contact, dt, t)
+        if flags[0]:
+            debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t)
+    else:
+        coupled_stage(pos, vel, dv, mass, radius, fixed, contact, solve, dt, t)
     if flags[0]:
-        debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t)
         com, quat, vd, wd = contact.com, contact.quat, contact.velocity, contact.omega
         for a in range(3):
             com[a] += dt * vd[a]
