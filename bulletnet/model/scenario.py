@@ -336,7 +336,8 @@ class Orbit:
 
 
 THRUST_PROFILES = ("step", "ramp", "zv", "zvd")
-THRUST_TRIGGERS = ("time", "captured")
+TOW_TRIGGERS = ("time", "captured")
+"""When the thrust starts: a time, or a delay after the capture's decision."""
 
 
 @dataclass(frozen=True)
@@ -365,7 +366,7 @@ class Thrust:
     shaped step starts on a taut one (docs/tow.md); 0: none."""
     pretension_time: float = _f(0.0, "s", ">=0")
     """How long the ``pretension`` thrust acts before the rise to ``force`` [s]."""
-    trigger: str = _f("captured", "-", "choice", THRUST_TRIGGERS)
+    trigger: str = _f("captured", "-", "choice", TOW_TRIGGERS)
     """When the burn starts: at ``trigger_time`` (``time``), or ``trigger_delay`` after the
     frame at which the capture's outcome is decided ``captured`` (``captured``; needs
     ``[outcome]``)."""
@@ -613,25 +614,33 @@ def _check_orbit(s: Scenario) -> None:
                             "dynamics to put in orbit; use --engine fast or bullet")
 
 
+def _check_chaser_part(s: Scenario, section: str) -> None:
+    """A part of the chaser (``section``: "thrust") needs a free chaser, an engine other than
+    the reference, and for trigger ``captured`` the judged capture."""
+    rules = getattr(s, section)
+    if not rules.enabled:
+        return
+    if not (s.tether.enabled and s.tether.chaser_mass > 0):
+        raise ScenarioError(f"{s.source}: {section}.enabled: a {section} needs a chaser "
+                            "(tether.enabled with tether.chaser_mass > 0)")
+    if s.simulation.engine == "reference":
+        raise ScenarioError(f"{s.source}: {section}.enabled: the reference engine has no "
+                            f"{section}; use --engine fast or bullet")
+    if rules.trigger == "captured" and (not s.outcome.enabled or s.outcome.stop_when_decided):
+        raise ScenarioError(f"{s.source}: {section}.trigger: 'captured' needs outcome.enabled "
+                            "without outcome.stop_when_decided; use 'time'")
+
+
 def _check_tow(s: Scenario) -> None:
     """A thrust needs a free chaser (and for trigger ``captured`` the judged capture); a
     judged tow needs a thrust, debris and contact."""
     th = s.thrust
-    if th.enabled and not (s.tether.enabled and s.tether.chaser_mass > 0):
-        raise ScenarioError(f"{s.source}: thrust.enabled: a thrust needs a chaser "
-                            "(tether.enabled with tether.chaser_mass > 0)")
-    if th.enabled and s.simulation.engine == "reference":
-        raise ScenarioError(f"{s.source}: thrust.enabled: the reference engine has no "
-                            "thrust; use --engine fast or bullet")
+    _check_chaser_part(s, "thrust")
     if th.enabled and math.hypot(*th.direction) == 0:
         raise ScenarioError(f"{s.source}: thrust.direction: expected a nonzero direction [-]")
     if th.enabled and th.pretension >= th.force:
         raise ScenarioError(f"{s.source}: thrust.pretension: expected less than thrust.force "
                             f"({th.force:g} N), got {th.pretension:g} N")
-    if th.enabled and th.trigger == "captured" and (
-            not s.outcome.enabled or s.outcome.stop_when_decided):
-        raise ScenarioError(f"{s.source}: thrust.trigger: 'captured' needs outcome.enabled "
-                            "without outcome.stop_when_decided; use 'time'")
     if s.tow.enabled and not (th.enabled and s.debris.asset and s.contact.enabled):
         raise ScenarioError(f"{s.source}: tow.enabled: judging a tow needs thrust.enabled, "
                             "debris (debris.asset) and contact (contact.enabled)")
