@@ -23,10 +23,12 @@ Capture (Sec. 5), from recordings with debris and contact:
   for at least ``LEAVE_QUIET_S`` to the end of the run;
 - the debris' spin before and after: angular velocity [deg/s] at the first and last frame;
 - the mechanical energy: the nodes' kinetic energy, the threads' and closing cables'
-  elastic energy and the debris' kinetic energy. What it leaves out (the nodes' rotation, the
-  bending and contact springs) is never negative and zero at the start of a scene, and every
-  force of the model is passive: so it never rises above its initial value plus the work of
-  the closing mechanism's winches (:func:`winch_work`) in a sound run.
+  elastic energy (a reeled tether's at its recorded length) and the debris' kinetic energy.
+  What it leaves out (the nodes' rotation, the bending and contact springs) is never negative
+  and zero at the start of a scene, and every force of the model is passive: so it never
+  rises above its initial value plus the work of the closing mechanism's winches
+  (:func:`winch_work`) and of the reel at the chaser (:func:`reel_work`) in a sound run (a
+  thrust's work is not counted: docs/tow.md).
 
 Strength (every recording; docs/strength.md), over the elements: the threads (net threads,
 corner threads, a bridle's lines, the tether's, by their ends' kinds:
@@ -115,8 +117,9 @@ def summary(rec: Recording) -> dict:
     """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys;
     the safety margins under ``strength`` (:func:`strength_summary`, and what failed under
     its ``breakage``, :func:`breakage`: None without ``strength.breakage``); with the capture
-    measures under ``capture`` for recordings with debris and contact, and the burn's and the
-    tow's recorded attributes (``thrust_*``, ``tow_*``) under ``tow``."""
+    measures under ``capture`` for recordings with debris and contact, the burn's and the
+    tow's recorded attributes (``thrust_*``, ``tow_*``) under ``tow``, and the reel at the
+    chaser under ``reel`` (:func:`reel_summary`) for recordings with one."""
     doc = {
         "time_s": rec.time.tolist(),
         "mouth_area_m2": mouth_area(rec).tolist(),
@@ -132,6 +135,8 @@ def summary(rec: Recording) -> dict:
            if k.startswith(("tow_", "thrust_"))}
     if tow:
         doc["tow"] = tow  # the run's own judgement (docs/recordings.md), units in the keys
+    if rec.tether is not None:
+        doc["reel"] = reel_summary(rec)
     return doc
 
 
@@ -313,10 +318,10 @@ def energy(rec: Recording) -> np.ndarray:
     from ..kernels.axial import axial_energy
 
     total = 0.5 * np.einsum("n,tna,tna->t", rec.mass, rec.velocity, rec.velocity)
-    stiffness = rec.stiffness
+    rest, stiffness = thread_rest_lengths(rec)
     if rec.failure_time is not None:  # a failed thread holds nothing from its failure on
         stiffness = np.where(_failed(rec.time, rec.failure_time), 0.0, stiffness)
-    total += axial_energy(rec.position, rec.pairs, rec.rest_length, stiffness)
+    total += axial_energy(rec.position, rec.pairs, rest, stiffness)
     if rec.cables is not None:
         from ..kernels.cable import cable_energy
 
@@ -350,6 +355,43 @@ def winch_work(rec: Recording) -> np.ndarray:
     return rec.cables["work"].sum(axis=1)
 
 
+def thread_rest_lengths(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """Each thread's rest length [m] and axial stiffness [N/m]: the recorded ones, shape
+    (P,) each; with a tether reeled at the chaser (``/tether``), at each frame, shape (T, P)
+    each, its S threads sharing the deployed length, L / S each, at the stiffness
+    E A / (L / S) of their rigidity E A (their recorded k l_0) (:mod:`bulletnet.kernels.reel`)."""
+    if rec.tether is None:
+        return rec.rest_length, rec.stiffness
+    shape = (rec.time.size, rec.pairs.shape[0])
+    rest = np.broadcast_to(rec.rest_length, shape).copy()
+    stiffness = np.broadcast_to(rec.stiffness, shape).copy()
+    threads = rec.tether["threads"]
+    rigidity = rec.stiffness[threads] * rec.rest_length[threads]
+    rest[:, threads] = rec.tether["length"][:, None] / threads.size
+    stiffness[:, threads] = rigidity / rest[:, threads]
+    return rest, stiffness
+
+
+def reel_work(rec: Recording) -> np.ndarray:
+    """Work done by the reel at the chaser so far [J], shape (T,) (negative while its brake
+    pays out: it takes energy out); zero without one. With :func:`winch_work`, what the
+    mechanical energy (:func:`energy`) may rise by."""
+    if rec.tether is None:
+        return np.zeros(rec.time.size)
+    return rec.tether["reel_work"].copy()
+
+
+def reel_summary(rec: Recording) -> dict:
+    """The reel at the chaser (JSON-ready, units in the keys): when it started
+    (``start_s``, -1: never), the tether's deployed length at the first and last frames and
+    its least and largest, and the reel's work at the end [J]."""
+    length = rec.tether["length"]
+    return {"start_s": float(rec.attrs.get("reel_start_s", -1.0)),
+            "initial_length_m": float(length[0]), "final_length_m": float(length[-1]),
+            "least_length_m": float(length.min()), "largest_length_m": float(length.max()),
+            "work_J": float(rec.tether["reel_work"][-1])}
+
+
 def spin(rec: Recording) -> dict:
     """The debris' angular velocity [deg/s] at the first and last frame, (3,) each, and the
     change of its magnitude [deg/s]."""
@@ -361,11 +403,11 @@ def spin(rec: Recording) -> dict:
 def capture_summary(rec: Recording) -> dict:
     """Capture measures (JSON-ready, units in the keys): first-contact and leave times,
     peak nodes in contact and wrap, the debris' spin change, the largest rise of the
-    mechanical energy above its start plus the winches' work (:func:`energy`,
-    :func:`winch_work`; a sound run has none), the outcome (:func:`capture_outcome`:
-    ``outcome``, ``outcome_time_s`` when decided and ``outcome_since_s`` when its condition
-    began, -1 while undecided, and ``outcome_reason``), the highest capture quality, and the
-    time series."""
+    mechanical energy above its start plus the winches' and the reel's work (:func:`energy`,
+    :func:`winch_work`, :func:`reel_work`; a sound run has none), the outcome
+    (:func:`capture_outcome`: ``outcome``, ``outcome_time_s`` when decided and
+    ``outcome_since_s`` when its condition began, -1 while undecided, and
+    ``outcome_reason``), the highest capture quality, and the time series."""
     count = nodes_in_contact(rec)
     wrapped = wrap(rec)
     k = int(np.argmax(wrapped))
@@ -380,7 +422,8 @@ def capture_summary(rec: Recording) -> dict:
         "max_nodes_in_contact": int(count.max()),
         "max_wrap": float(wrapped[k]), "max_wrap_time_s": float(rec.time[k]),
         "spin": spin(rec),
-        "max_energy_gain_J": float(np.max(total - total[0] - winch_work(rec))),
+        "max_energy_gain_J": float(np.max(total - total[0] - winch_work(rec)
+                                          - reel_work(rec))),
         "outcome": judged.outcome, "outcome_time_s": judged.time,
         "outcome_since_s": judged.since, "outcome_reason": judged.reason,
         "max_capture_quality": float(scores[best, 2]),

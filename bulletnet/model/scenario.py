@@ -337,7 +337,7 @@ class Orbit:
 
 THRUST_PROFILES = ("step", "ramp", "zv", "zvd")
 TOW_TRIGGERS = ("time", "captured")
-"""When the thrust starts: a time, or a delay after the capture's decision."""
+"""When the thrust and the reel start: a time, or a delay after the capture's decision."""
 
 
 @dataclass(frozen=True)
@@ -374,6 +374,34 @@ class Thrust:
     """Start of the burn with trigger ``time`` [s]."""
     trigger_delay: float = _f(0.0, "s", ">=0")
     """Delay from the capture's decision to the start of the burn with trigger
+    ``captured`` [s]."""
+
+
+@dataclass(frozen=True)
+class Reel:
+    enabled: bool = _f(False, "-")
+    """Whether the chaser reels the main tether in or out during the run, changing its
+    deployed length (docs/tow.md); needs ``[tether]`` with a free chaser."""
+    speed: float = _f(0.0, "m/s")
+    """Speed at which the reel's motor changes the deployed length [m/s]: reel-in positive
+    (the tether shortens), pay-out negative; 0: no motor (the brake alone)."""
+    tension_limit: float = _f(0.0, "N", ">=0")
+    """Tension of the tether at the chaser (its last segment) above which the reel's brake
+    slips, paying out just enough to hold it there [N] (docs/tow.md); 0: none (the reel
+    holds any tension)."""
+    min_length: float = _f(1.0, "m", ">0")
+    """Least deployed length of the tether [m]: the motor stops reeling in there."""
+    max_length: float = _f(0.0, "m", ">=0")
+    """Largest deployed length of the tether [m]: the line on the drum runs out there, and
+    neither the motor nor the brake pays out more; 0: no limit."""
+    trigger: str = _f("captured", "-", "choice", TOW_TRIGGERS)
+    """When the reel starts: at ``trigger_time`` (``time``), or ``trigger_delay`` after the
+    frame at which the capture's outcome is decided ``captured`` (``captured``; needs
+    ``[outcome]``), as ``[thrust]``'s burn does. Before that the drum is locked."""
+    trigger_time: float = _f(0.0, "s", ">=0")
+    """Start of the reel with trigger ``time`` [s]."""
+    trigger_delay: float = _f(0.0, "s", ">=0")
+    """Delay from the capture's decision to the start of the reel with trigger
     ``captured`` [s]."""
 
 
@@ -466,6 +494,7 @@ class Scenario:
     strength: Strength = field(default_factory=Strength)
     orbit: Orbit = field(default_factory=Orbit)
     thrust: Thrust = field(default_factory=Thrust)
+    reel: Reel = field(default_factory=Reel)
     tow: TowRules = field(default_factory=TowRules)
     simulation: Simulation = field(default_factory=Simulation)
     outcome: OutcomeRules = field(default_factory=OutcomeRules)
@@ -615,8 +644,8 @@ def _check_orbit(s: Scenario) -> None:
 
 
 def _check_chaser_part(s: Scenario, section: str) -> None:
-    """A part of the chaser (``section``: "thrust") needs a free chaser, an engine other than
-    the reference, and for trigger ``captured`` the judged capture."""
+    """A part of the chaser (``section`` "thrust" or "reel") needs a free chaser, an engine
+    other than the reference, and for trigger ``captured`` the judged capture."""
     rules = getattr(s, section)
     if not rules.enabled:
         return
@@ -631,11 +660,28 @@ def _check_chaser_part(s: Scenario, section: str) -> None:
                             "without outcome.stop_when_decided; use 'time'")
 
 
+def _check_reel(s: Scenario) -> None:
+    """A reel does something, and the tether's length lies within its limits."""
+    r, length = s.reel, s.tether.length
+    if r.speed == 0 and r.tension_limit == 0:
+        raise ScenarioError(f"{s.source}: reel.speed: a reel without a speed [m/s] or a "
+                            "reel.tension_limit [N] does nothing; give one")
+    if r.min_length > length:
+        raise ScenarioError(f"{s.source}: reel.min_length: expected at most tether.length "
+                            f"({length:g} m), got {r.min_length:g} m")
+    if 0 < r.max_length < length:
+        raise ScenarioError(f"{s.source}: reel.max_length: expected at least tether.length "
+                            f"({length:g} m), or 0 for no limit, got {r.max_length:g} m")
+
+
 def _check_tow(s: Scenario) -> None:
-    """A thrust needs a free chaser (and for trigger ``captured`` the judged capture); a
-    judged tow needs a thrust, debris and contact."""
+    """A thrust and a reel need a free chaser (and for trigger ``captured`` the judged
+    capture); a judged tow needs a thrust, debris and contact."""
     th = s.thrust
     _check_chaser_part(s, "thrust")
+    _check_chaser_part(s, "reel")
+    if s.reel.enabled:
+        _check_reel(s)
     if th.enabled and math.hypot(*th.direction) == 0:
         raise ScenarioError(f"{s.source}: thrust.direction: expected a nonzero direction [-]")
     if th.enabled and th.pretension >= th.force:

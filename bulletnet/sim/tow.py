@@ -1,4 +1,5 @@
-"""The tow: the chaser's burn and the judge of its outcome, as observers of the run loop.
+"""The tow: the chaser's burn, its reel and the judge of the tow's outcome, as observers of
+the run loop.
 
 - :class:`ThrustControl` starts the burn by the scene's trigger (``[thrust]``: a time, or a
   delay after the frame at which the capture is decided ``captured``: :class:`Trigger`)
@@ -10,6 +11,8 @@
 - :class:`TowOutcome` judges the tow from the burn's start on, frame by frame
   (:class:`~bulletnet.analysis.tow_score.TowMonitor`), and adds its outcome and measures to
   the recording.
+- :class:`ReelControl` starts the reel at the chaser (``[reel]``) by the same rules; the
+  engine reels from then on (:mod:`bulletnet.kernels.reel`).
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ from .observers import Observer, Run
 
 class Trigger:
     """When a part of the tow starts, by its table's ``trigger``, ``trigger_time`` [s] and
-    ``trigger_delay`` [s] (``[thrust]``): at the trigger time (``time``), or the
+    ``trigger_delay`` [s] (``[thrust]``, ``[reel]``): at the trigger time (``time``), or the
     delay after the frame at which ``capture`` decides the capture ``captured``
     (``captured``; ``capture`` None for ``time``)."""
 
@@ -122,3 +125,21 @@ class TowOutcome(Observer):
         self.monitor.finish(status == "completed")
         attrs.update(self.monitor.attributes())
 
+
+class ReelControl(Observer):
+    """Starts the reel at the chaser (``[reel]``) by its :class:`Trigger`; ``capture`` judges
+    the capture for trigger ``captured`` (None for trigger ``time``). At the end, its start
+    time into the run's attributes (``reel_start_s`` [s], -1: never started)."""
+
+    def __init__(self, scenario, capture: OutcomeMonitor | None):
+        self.trigger = Trigger(scenario.reel, capture)
+
+    def frame(self, run: Run) -> bool:
+        start = None if run.engine.reel_started else self.trigger.start_time()
+        if start is not None:
+            run.engine.start_reel(start)
+        return False
+
+    def finish(self, run: Run, status: str, attrs: dict) -> None:
+        reel = run.engine.arrays.reel
+        attrs["reel_start_s"] = float(reel.start_time[0]) if run.engine.reel_started else -1.0
