@@ -25,10 +25,14 @@ CLOSING_AND_TETHER = {
     "closing.reel_speed": 1.0, "tether.enabled": True, "tether.segments": 2,
     "tether.length": 0.99, "tether.chaser_distance": 1.0}
 """Closing cables taut and reeling from the start, and a stretched tether to a chaser."""
+REELED = {**CLOSING_AND_TETHER, "reel.enabled": True, "reel.speed": 1.0,
+          "reel.tension_limit": 20.0, "reel.trigger": "time", "reel.min_length": 0.5}
+"""The same, the tether reeled at the chaser: its brake pays out to 20 N, its motor reels in."""
 
 
 @pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
-@pytest.mark.parametrize("elements", [{}, CLOSING_AND_TETHER], ids=["net", "closing+tether"])
+@pytest.mark.parametrize("elements", [{}, CLOSING_AND_TETHER, REELED],
+                         ids=["net", "closing+tether", "closing+reeled tether"])
 def test_bullet_matches_fast_to_round_off(tmp_path, integrator, elements):
     # Reference: the fast engine with the same integrator. PyBullet's update is the same
     # semi-implicit Euler, so the two differ only by floating-point rounding.
@@ -43,6 +47,10 @@ def test_bullet_matches_fast_to_round_off(tmp_path, integrator, elements):
     assert runs["fast"].tension.any()  # the threads were taut: forces were exercised
     if elements:  # and the cables and the tether
         assert runs["fast"].cables["tension"].any() and runs["fast"].tension[:, -2:].any()
+    if elements is REELED:  # and the reel, to the same length
+        length = runs["fast"].tether["length"]
+        assert length.max() > 0.99 and length[-1] < length.max()
+        assert abs(runs["bullet"].tether["length"] - length).max() < 1e-9
     r = bn.metrics.rmse(runs["fast"], runs["bullet"])
     assert r["rmse_pos_max"] < 1e-9
     assert r["rmse_vel_max"] < 1e-6

@@ -54,7 +54,7 @@ def test_slack_and_closing_thread_give_exactly_zero():
     # Reference: Eq. 3 — no force if l <= l_0, or if T = k (l - l_0) + c v_r <= 0.
     model = two_mass_model(c=1000.0)
     force, tension = np.zeros((2, 3)), np.zeros(1)
-    args = (model.pairs, model.rest_length, model.axial_stiffness, model.axial_damping,
+    args = (model.pairs, model.rest_length, None, model.axial_stiffness, model.axial_damping,
             model.bilateral)
     slack = np.array([[0.0, 0, 0], [0.4, 0.1, 0]])   # l < l_0, pulling apart fast
     axial_forces(slack, np.array([[0.0, 0, 0], [50, 0, 0]]), *args, force, tension)
@@ -75,7 +75,7 @@ def test_force_is_minus_energy_gradient():
     rng = np.random.default_rng(1)
     pos = bn.initial_state(s, model).position * 4.4 + rng.normal(0, 0.05, (model.node_count, 3))
     force, tension = np.zeros_like(pos), np.zeros(model.thread_count)
-    axial_forces(pos, np.zeros_like(pos), model.pairs, model.rest_length,
+    axial_forces(pos, np.zeros_like(pos), model.pairs, model.rest_length, None,
                  model.axial_stiffness, model.axial_damping, model.bilateral, force, tension)
     assert np.count_nonzero(tension) > model.thread_count // 2  # most threads taut
     h = 1e-7

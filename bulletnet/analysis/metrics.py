@@ -23,11 +23,12 @@ Capture (Sec. 5), from recordings with debris and contact:
   for at least ``LEAVE_QUIET_S`` to the end of the run;
 - the debris' spin before and after: angular velocity [deg/s] at the first and last frame;
 - the mechanical energy: the nodes' kinetic energy, the threads' and closing cables'
-  elastic energy and the debris' kinetic energy. What it leaves out (the nodes' rotation, the
-  bending and contact springs) is never negative and zero at the start of a scene, and every
-  force of the model is passive: so it never rises above its initial value plus the work of
-  the closing mechanism's winches (:func:`winch_work`) and of the chaser's thrust
-  (:func:`thrust_work`) in a sound run.
+  elastic energy (a reeled tether's at its recorded length) and the debris' kinetic energy.
+  What it leaves out (the nodes' rotation, the bending and contact springs) is never negative
+  and zero at the start of a scene, and every force of the model is passive: so it never
+  rises above its initial value plus the work of the closing mechanism's winches
+  (:func:`winch_work`), of the reel at the chaser (:func:`reel_work`) and of the chaser's
+  thrust (:func:`thrust_work`) in a sound run.
 
 Strength (every recording; docs/strength.md), over the elements: the threads (net threads,
 corner threads, a bridle's lines, the tether's, by their ends' kinds:
@@ -117,8 +118,9 @@ def summary(rec: Recording) -> dict:
     """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys;
     the safety margins under ``strength`` (:func:`strength_summary`, and what failed under
     its ``breakage``, :func:`breakage`: None without ``strength.breakage``); with the capture
-    measures under ``capture`` for recordings with debris and contact, and the burn's and the
-    tow's recorded attributes (``thrust_*``, ``tow_*``) under ``tow``."""
+    measures under ``capture`` for recordings with debris and contact, the burn's and the
+    tow's recorded attributes (``thrust_*``, ``tow_*``) under ``tow``, and the reel at the
+    chaser under ``reel`` (:func:`reel_summary`) for recordings with one."""
     doc = {
         "time_s": rec.time.tolist(),
         "mouth_area_m2": mouth_area(rec).tolist(),
@@ -134,6 +136,8 @@ def summary(rec: Recording) -> dict:
            if k.startswith(("tow_", "thrust_"))}
     if tow:
         doc["tow"] = tow  # the run's own judgement (docs/recordings.md), units in the keys
+    if rec.tether is not None:
+        doc["reel"] = reel_summary(rec)
     return doc
 
 
@@ -323,10 +327,10 @@ def energy(rec: Recording) -> np.ndarray:
     from ..kernels.axial import axial_energy
 
     total = 0.5 * np.einsum("n,tna,tna->t", rec.mass, rec.velocity, rec.velocity)
-    stiffness = rec.stiffness
+    rest, stiffness = thread_rest_lengths(rec)
     if rec.failure_time is not None:  # a failed thread holds nothing from its failure on
         stiffness = np.where(_failed(rec.time, rec.failure_time), 0.0, stiffness)
-    total += axial_energy(rec.position, rec.pairs, rec.rest_length, stiffness)
+    total += axial_energy(rec.position, rec.pairs, rest, stiffness)
     if rec.cables is not None:
         from ..kernels.cable import cable_energy
 
@@ -382,9 +386,9 @@ def thrust_work(rec: Recording) -> np.ndarray:
     frames: over each frame interval the profile's mean force (:func:`tow_series`' thrust)
     times the chaser's displacement along the burn's direction, exact where the force is
     constant over the interval (the steps of a shaped rise are smeared over the interval
-    they fall in). The mechanical energy may rise by this and the winches' work and no more
-    (the HCW forces of ``[orbit]`` are left out: in the removal scene their potential
-    changes by about 1 J)."""
+    they fall in). The mechanical energy may rise by this, the winches' and the reel's work
+    and no more (the HCW forces of ``[orbit]`` are left out: in the removal scene their
+    potential changes by about 1 J)."""
     work = np.zeros(rec.time.size)
     start = float(rec.attrs.get("thrust_start_s", -1.0))
     if start < 0:
@@ -398,6 +402,43 @@ def thrust_work(rec: Recording) -> np.ndarray:
     return work
 
 
+def thread_rest_lengths(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """Each thread's rest length [m] and axial stiffness [N/m]: the recorded ones, shape
+    (P,) each; with a tether reeled at the chaser (``/tether``), at each frame, shape (T, P)
+    each, its S threads sharing the deployed length, L / S each, at the stiffness
+    E A / (L / S) of their rigidity E A (their recorded k l_0) (:mod:`bulletnet.kernels.reel`)."""
+    if rec.tether is None:
+        return rec.rest_length, rec.stiffness
+    shape = (rec.time.size, rec.pairs.shape[0])
+    rest = np.broadcast_to(rec.rest_length, shape).copy()
+    stiffness = np.broadcast_to(rec.stiffness, shape).copy()
+    threads = rec.tether["threads"]
+    rigidity = rec.stiffness[threads] * rec.rest_length[threads]
+    rest[:, threads] = rec.tether["length"][:, None] / threads.size
+    stiffness[:, threads] = rigidity / rest[:, threads]
+    return rest, stiffness
+
+
+def reel_work(rec: Recording) -> np.ndarray:
+    """Work done by the reel at the chaser so far [J], shape (T,) (negative while its brake
+    pays out: it takes energy out); zero without one. With :func:`winch_work`, what the
+    mechanical energy (:func:`energy`) may rise by."""
+    if rec.tether is None:
+        return np.zeros(rec.time.size)
+    return rec.tether["reel_work"].copy()
+
+
+def reel_summary(rec: Recording) -> dict:
+    """The reel at the chaser (JSON-ready, units in the keys): when it started
+    (``start_s``, -1: never), the tether's deployed length at the first and last frames and
+    its least and largest, and the reel's work at the end [J]."""
+    length = rec.tether["length"]
+    return {"start_s": float(rec.attrs.get("reel_start_s", -1.0)),
+            "initial_length_m": float(length[0]), "final_length_m": float(length[-1]),
+            "least_length_m": float(length.min()), "largest_length_m": float(length.max()),
+            "work_J": float(rec.tether["reel_work"][-1])}
+
+
 def spin(rec: Recording) -> dict:
     """The debris' angular velocity [deg/s] at the first and last frame, (3,) each, and the
     change of its magnitude [deg/s]."""
@@ -409,9 +450,10 @@ def spin(rec: Recording) -> dict:
 def capture_summary(rec: Recording) -> dict:
     """Capture measures (JSON-ready, units in the keys): first-contact and leave times,
     peak nodes in contact and wrap, the debris' spin change, the largest rise of the
-    mechanical energy above its start plus the winches' and the thrust's work
-    (:func:`energy`, :func:`winch_work`, :func:`thrust_work`; a sound run has none), the
-    outcome (:func:`capture_outcome`: ``outcome``, ``outcome_time_s`` when decided and
+    mechanical energy above its start plus the winches', the reel's and the thrust's work
+    (:func:`energy`, :func:`winch_work`, :func:`reel_work`, :func:`thrust_work`; a sound run
+    has none), the outcome (:func:`capture_outcome`: ``outcome``, ``outcome_time_s`` when
+    decided and
     ``outcome_since_s`` when its condition began, -1 while undecided, and
     ``outcome_reason``), the highest capture quality, and the time series."""
     count = nodes_in_contact(rec)
@@ -429,7 +471,7 @@ def capture_summary(rec: Recording) -> dict:
         "max_wrap": float(wrapped[k]), "max_wrap_time_s": float(rec.time[k]),
         "spin": spin(rec),
         "max_energy_gain_J": float(np.max(total - total[0] - winch_work(rec)
-                                          - thrust_work(rec))),
+                                          - reel_work(rec) - thrust_work(rec))),
         "outcome": judged.outcome, "outcome_time_s": judged.time,
         "outcome_since_s": judged.since, "outcome_reason": judged.reason,
         "max_capture_quality": float(scores[best, 2]),

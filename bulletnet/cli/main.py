@@ -765,6 +765,8 @@ def cmd_metrics(args) -> int:
     tow = doc.get("tow")
     if tow:
         _print_tow(tow)
+    if "reel" in doc:
+        print(_reel_text(doc["reel"]))
     print("   time [s]  mouth area [m^2]  mouth diagonal [m]  net height [m]"
           + ("  contacts [-]  wrap [-]  enclosed [-]  mouth [-]  quality [-]"
              if capture else ""))
@@ -846,6 +848,15 @@ def _print_tow(tow: dict) -> None:
               f"largest {tow['tow_snap_peak_N']:.4g} N; least chaser-debris distance "
               f"{tow['tow_least_distance_m']:.3f} m; debris rate at most "
               f"{tow['tow_largest_debris_rate_deg_s']:.3f} deg/s")
+
+
+def _reel_text(reel: dict) -> str:
+    """The reel at the chaser (:func:`bulletnet.analysis.metrics.reel_summary`) as a line."""
+    start = ("never started" if reel["start_s"] < 0 else f"from {reel['start_s']:.2f} s")
+    return (f"reel at the chaser: {start}; tether deployed {reel['initial_length_m']:.3f} m -> "
+            f"{reel['final_length_m']:.3f} m (least {reel['least_length_m']:.3f} m, largest "
+            f"{reel['largest_length_m']:.3f} m); its work {reel['work_J']:.4g} J (negative: "
+            "its brake took energy out)")
 
 
 def _outcome_text(outcome: str, decided: float, reason: str) -> str:

@@ -13,6 +13,7 @@ from ..kernels.cable import CableArrays, cable_arrays
 from ..kernels.orbit import OrbitArrays, orbit_arrays
 from ..kernels.peaks import PeakArrays, peak_arrays
 from ..kernels.peaks import reset as reset_peaks
+from ..kernels.reel import ReelArrays, reel_arrays
 from ..model.builder import scene_debris
 from ..model.net import NetModel
 from ..model.scenario import Scenario
@@ -77,6 +78,19 @@ def scene_orbit(scenario: Scenario) -> OrbitArrays | None:
     return orbit_arrays(o.n, o.radial, o.along_track, o.origin) if o.enabled else None
 
 
+def scene_reel(scenario: Scenario, model: NetModel) -> ReelArrays | None:
+    """The reel at the chaser (``[reel]``) on the model's tether, its last
+    ``tether.segments`` threads, not yet started (the run's
+    :class:`~bulletnet.sim.tow.ReelControl` starts it by the scene's trigger); None without
+    ``[reel]``."""
+    r = scenario.reel
+    if not r.enabled:
+        return None
+    return reel_arrays(model.pairs, model.rest_length, model.axial_stiffness,
+                       model.axial_damping, scenario.tether.segments, r.speed,
+                       r.tension_limit or np.inf, r.min_length, r.max_length or np.inf)
+
+
 class Engine(ABC):
     """Advances a :class:`NetState` in place. Engines hold no state of the net but their own
     scratch space (and, for ``bullet``, the PyBullet world mirroring it)."""
@@ -88,13 +102,18 @@ class Engine(ABC):
         self.model = model
         self.cables = winch_cables(scenario, model)
         """The closing cables and their winches, as the kernels read and write them."""
-        self.arrays = integrators.model_arrays(model, self.cables, scene_orbit(scenario))
+        self.arrays = integrators.model_arrays(model, self.cables, scene_orbit(scenario),
+                                               scene_reel(scenario, model))
         self.breakage = scene_breakage(scenario, model)
         """What fails and when (:mod:`bulletnet.kernels.breakage`); None without breakage."""
-        if self.breakage is not None:  # the kernels zero a failed thread's parameters
+        written = set()  # the thread arrays the kernels write: the engine's own copies
+        if self.breakage is not None:  # a failed thread's parameters zeroed
+            written |= {"k_a", "c_a", "k_t", "c_t", "k_b", "c_b"}
+        if self.arrays.reel is not None:  # the reeled tether's rest length, stiffness, damping
+            written |= {"rest", "k_a", "c_a"}
+        if written:
             a = self.arrays
-            self.arrays = a._replace(**{name: getattr(a, name).copy() for name in (
-                "k_a", "c_a", "k_t", "c_t", "k_b", "c_b")})
+            self.arrays = a._replace(**{name: getattr(a, name).copy() for name in written})
         self.peaks: PeakArrays = peak_arrays(model.thread_count, model.cable_count)
         """Each element's largest tension in the steps since :meth:`peak_tensions` last read
         them (:mod:`bulletnet.kernels.peaks`)."""
@@ -147,6 +166,27 @@ class Engine(ABC):
         """Start the winches at time ``t`` [s], unless they have been started already."""
         if not self.winches_started:
             self.cables.start_time[0] = t
+
+    @property
+    def reel_started(self) -> bool:
+        """Whether the reel's start time has been set (by its trigger); False without a
+        reel."""
+        reel = self.arrays.reel
+        return reel is not None and bool(reel.start_time[0] < np.inf)
+
+    def start_reel(self, t: float) -> None:
+        """Start the reel at the chaser at time ``t`` [s], unless it has been started
+        already."""
+        if not self.reel_started:
+            self.arrays.reel.start_time[0] = t
+
+    def reel_loads(self) -> dict | None:
+        """The reel at the chaser after the last step: the tether's deployed ``length`` [m]
+        and the reel's ``work`` so far [J], floats; None without a reel."""
+        reel = self.arrays.reel
+        if reel is None:
+            return None
+        return {"length": float(reel.length[0]), "work": float(reel.work[0])}
 
     def cable_loads(self) -> dict:
         """The closing cables at the last force evaluation, each shape (C,): ``tension`` [N],

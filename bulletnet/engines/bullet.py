@@ -25,6 +25,7 @@ import numpy as np
 from ..kernels.breakage import break_cables, break_threads
 from ..kernels.cable import reel
 from ..kernels.peaks import track_cables, track_threads
+from ..kernels.reel import reel_tether
 from ..model.debris import COM, OMEGA, QUAT, VELOCITY, body_origin
 from ..model.net import NodeKind
 from ..model.state import NetState
@@ -161,6 +162,10 @@ class BulletEngine(Engine):
                 break_threads(state.position, a.pairs, a.rest, w.tension, a.k_a, a.c_a, a.k_t,
                               a.c_t, a.k_b, a.c_b, self.breakage, t)
                 break_cables(state.position, a.cables, self.breakage, t)
+            if self.arrays.reel is not None:  # the tether's rest lengths for the next step
+                a = self.arrays
+                reel_tether(state.position, state.velocity, a.reel, a.rest, a.rest_rate, a.k_a,
+                            a.c_a, state.time + k * dt, dt)
             if not np.isfinite(state.position).all():
                 break
         if self.debris_body is not None:

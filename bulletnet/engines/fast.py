@@ -32,8 +32,8 @@ class FastEngine(Engine):
         """The debris' PyBullet world (created on the first step)."""
         use_grid = (scenario.simulation.kernels == "grid" and self.dt > 0
                     and grid_kernels.applies(model))
-        self.grid = (grid_kernels.build(model, self.arrays.cables, self.arrays.orbit)
-                     if use_grid else None)
+        self.grid = (grid_kernels.build(model, self.arrays.cables, self.arrays.orbit,
+                                        self.arrays.rest_rate) if use_grid else None)
         """The net's grid threads and structure-of-arrays state (None: the pair-list path)."""
         self.views = grid_kernels.views(self.grid) if use_grid else None
         """(N, 3) views of the grid's rows (None on the pair-list path)."""
@@ -52,10 +52,11 @@ class FastEngine(Engine):
 
     @property
     def free(self) -> bool:
-        """Whether the net is free: on the grid, with no bending, contact, cables or breakage.
-        Its steps are then :func:`bulletnet.solver.grid.free_steps` alone."""
+        """Whether the net is free: on the grid, with no bending, contact, cables, breakage or
+        reel. Its steps are then :func:`bulletnet.solver.grid.free_steps` alone."""
         return (self.grid is not None and not self.bending and self.contact_arrays is None
-                and self.arrays.cables is None and self.breakage is None)
+                and self.arrays.cables is None and self.breakage is None
+                and self.arrays.reel is None)
 
     @property
     def contact_arrays(self):
@@ -101,8 +102,8 @@ class FastEngine(Engine):
             step = ([(integrators.implicit_increment, (pos, vel, a, w, self.dt,
                                                        self.cg_tolerance))]
                     if self.implicit else
-                    [(axial_forces, (pos, vel, a.pairs, a.rest, a.k_a, a.c_a, a.bilateral,
-                                     w.force, w.tension))])
+                    [(axial_forces, (pos, vel, a.pairs, a.rest, a.rest_rate, a.k_a, a.c_a,
+                                     a.bilateral, w.force, w.tension))])
         groups = {"step": step}
         if self.grid is not None and self.bending:
             groups["bending"] = [(grid_kernels.bending, (self.grid, self.views,
@@ -174,8 +175,21 @@ class FastEngine(Engine):
                 break
         if on_grid:
             grid_kernels.store(self.grid, state)
+            self._store_reel()
         self.steps += done
         state.time = t_end
+
+    def _store_reel(self) -> None:
+        """Copy the tether's rest lengths, their rates, stiffness and damping, which the reel
+        sets in the grid's other threads, into the pair list's arrays (:meth:`thread_loads`
+        reads them); nothing without a reel."""
+        reel, a, g = self.arrays.reel, self.arrays, self.grid
+        if reel is None:
+            return
+        tether = slice(-reel.pairs.shape[0], None)
+        for mine, rows in ((a.rest, g.o_rest), (a.rest_rate, g.o_rest_rate), (a.k_a, g.o_k),
+                           (a.c_a, g.o_c)):
+            mine[tether] = rows[tether]
 
     def close(self) -> None:
         if self.rigid is not None:

@@ -1,8 +1,11 @@
 """Tension-only Kelvin-Voigt threads (Eq. 3), compiled with numba.
 
 For thread p from node i to node j: l = |x_j - x_i|, e = (x_j - x_i) / l,
-v_r = (v_j - v_i) . e, T = k (l - l_0) + c v_r. The force +T e acts on i and -T e on j only
-if l > l_0 and T > 0; otherwise the thread pushes nothing and its tension is exactly zero.
+v_r = (v_j - v_i) . e, T = k (l - l_0) + c (v_r - l_0'). The force +T e acts on i and -T e on
+j only if l > l_0 and T > 0; otherwise the thread pushes nothing and its tension is exactly
+zero. The rest length's rate l_0' is zero but for a tether reeled at the chaser
+(:mod:`bulletnet.kernels.reel`): its damper acts on the strain rate, as a closing cable's
+(kernels given None for the rates take them as zero and compile no reading of them).
 With ``bilateral`` set (the cantilever's beam element) T acts whatever its sign. It is one
 flag for all elements, so the compiled loop keeps a single branch-free path.
 """
@@ -26,50 +29,62 @@ def add_pair(array, i, j, x, y, z):
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def kelvin_voigt(length, rate, rest, k, c, bilateral):
-    """Eq. 3's tension [N] of an element of length ``length`` [m] lengthening at ``rate``
-    [m/s]: k (l - l_0) + c l', or 0.0 if the element is slack (l <= l_0) or closing faster
-    than its spring holds (T <= 0), unless ``bilateral``. Branch-free."""
+    """Eq. 3's tension [N] of an element of length ``length`` [m] straining at ``rate``
+    [m/s] (its lengthening less its rest length's rate): k (l - l_0) + c (l' - l_0'), or
+    0.0 if the element is slack (l <= l_0) or closing faster than its spring holds (T <= 0),
+    unless ``bilateral``. Branch-free."""
     tension = k * (length - rest) + c * rate
     taut = bilateral | ((length > rest) & (tension > 0.0))
     return tension if taut else 0.0
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def tension_law(dx, dy, dz, du, dv, dw, rest, k, c, bilateral):
+def tension_law(dx, dy, dz, du, dv, dw, rest, rest_rate, k, c, bilateral):
     """Eq. 3 for one thread from its end-to-end vector (dx, dy, dz) [m] and relative velocity
-    (du, dv, dw) [m/s], rest length [m], stiffness [N/m] and damping [N s/m].
+    (du, dv, dw) [m/s], rest length [m] and its rate [m/s], stiffness [N/m] and damping
+    [N s/m].
 
     Returns (T [N], ex, ey, ez, l [m]); T is 0.0 for a slack thread or one closing faster than
     its spring holds (unless ``bilateral``). Branch-free, so loops over threads vectorize; the
     direction is computed for a slack thread too (and is not finite for l = 0: callers use it
     only where T != 0)."""
-    return tension_at(np.sqrt(dx * dx + dy * dy + dz * dz), dx, dy, dz, du, dv, dw, rest, k,
-                      c, bilateral)
+    return tension_at(np.sqrt(dx * dx + dy * dy + dz * dz), dx, dy, dz, du, dv, dw, rest,
+                      rest_rate, k, c, bilateral)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def tension_at(length, dx, dy, dz, du, dv, dw, rest, k, c, bilateral):
+def tension_at(length, dx, dy, dz, du, dv, dw, rest, rest_rate, k, c, bilateral):
     """:func:`tension_law` of a thread whose length ``length`` [m] is known."""
     inv = 1.0 / length
     ex, ey, ez = dx * inv, dy * inv, dz * inv
-    return (kelvin_voigt(length, du * ex + dv * ey + dw * ez, rest, k, c, bilateral), ex, ey,
-            ez, length)
+    return (kelvin_voigt(length, du * ex + dv * ey + dw * ez - rest_rate, rest, k, c,
+                         bilateral), ex, ey, ez, length)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def thread_tension(p, pos, vel, pairs, rest, k, c, bilateral):
+def _rest_rate(rest_rate, p):
+    """Thread p's rest-length rate [m/s]: 0.0 without rates (None; nothing read)."""
+    if rest_rate is None:
+        return 0.0
+    return rest_rate[p]
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def thread_tension(p, pos, vel, pairs, rest, rest_rate, k, c, bilateral):
     """Tension T [N] of thread p (:func:`tension_law`), its unit direction e (i -> j) and
     length l [m]: (T, ex, ey, ez, l)."""
     i, j = pairs[p, 0], pairs[p, 1]
     return tension_law(pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2],
                        vel[j, 0] - vel[i, 0], vel[j, 1] - vel[i, 1], vel[j, 2] - vel[i, 2],
-                       rest[p], k[p], c[p], bilateral)
+                       rest[p], _rest_rate(rest_rate, p), k[p], c[p], bilateral)
 
 
 @nb.njit(cache=True, error_model="numpy")
-def axial_forces(pos, vel, pairs, rest, k, c, bilateral, force, tension):
+def axial_forces(pos, vel, pairs, rest, rest_rate, k, c, bilateral, force, tension):
     """Add every thread's force [N] into ``force`` (N, 3); write tensions [N] into ``tension``
-    (P,); with ``bilateral`` set the elements also push. A slack thread (l <= l_0) is known
+    (P,), from the threads' rest lengths [m] and their rates [m/s] (None: zero), stiffness
+    [N/m] and damping [N s/m] (P,) each; with ``bilateral`` set the elements also push. A
+    slack thread (l <= l_0) is known
     from its length alone: it gets its zero tension without a direction (over a pair list
     nothing vectorizes, so the branch saves a division and the rest of the law; every other
     thread's tension is :func:`tension_law`'s, the same operations in the same order)."""
@@ -82,15 +97,15 @@ def axial_forces(pos, vel, pairs, rest, k, c, bilateral, force, tension):
             continue
         t, ex, ey, ez, _ = tension_at(length, dx, dy, dz, vel[j, 0] - vel[i, 0],
                                       vel[j, 1] - vel[i, 1], vel[j, 2] - vel[i, 2], rest[p],
-                                      k[p], c[p], bilateral)
+                                      _rest_rate(rest_rate, p), k[p], c[p], bilateral)
         tension[p] = t
         if t != 0.0:
             add_pair(force, i, j, t * ex, t * ey, t * ez)
 
 
 @nb.njit(cache=True, error_model="numpy")
-def axial_linearization(pos, vel, pairs, rest, k, c, bilateral, dt, force, tension, along,
-                        across, axis):
+def axial_linearization(pos, vel, pairs, rest, rest_rate, k, c, bilateral, dt, force, tension,
+                        along, across, axis):
     """Thread forces as :func:`axial_forces`, plus each taut thread's implicit-Euler block.
 
     The block of thread p in dt * dF/dv + dt^2 * dF/dx (with the non-symmetric d(v_r)/dx term
@@ -98,7 +113,8 @@ def axial_linearization(pos, vel, pairs, rest, k, c, bilateral, dt, force, tensi
     along = dt c + dt^2 k [kg], across = dt^2 k max(l - l_0, 0) / l [kg] (geometric
     stiffness, kept >= 0 so the system stays positive definite). Slack threads get zero blocks."""
     for p in range(pairs.shape[0]):
-        t, ex, ey, ez, length = thread_tension(p, pos, vel, pairs, rest, k, c, bilateral)
+        t, ex, ey, ez, length = thread_tension(p, pos, vel, pairs, rest, rest_rate, k, c,
+                                               bilateral)
         tension[p] = t
         axis[p, 0], axis[p, 1], axis[p, 2] = ex, ey, ez
         if t != 0.0:

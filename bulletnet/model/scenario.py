@@ -352,7 +352,8 @@ class Orbit:
 
 
 THRUST_PROFILES = ("step", "ramp", "zv", "zvd")
-THRUST_TRIGGERS = ("time", "captured")
+TOW_TRIGGERS = ("time", "captured")
+"""When the thrust and the reel start: a time, or a delay after the capture's decision."""
 
 
 @dataclass(frozen=True)
@@ -381,7 +382,7 @@ class Thrust:
     shaped step starts on a taut one (docs/tow.md); 0: none."""
     pretension_time: float = _f(0.0, "s", ">=0")
     """How long the ``pretension`` thrust acts before the rise to ``force`` [s]."""
-    trigger: str = _f("captured", "-", "choice", THRUST_TRIGGERS)
+    trigger: str = _f("captured", "-", "choice", TOW_TRIGGERS)
     """When the burn starts: at ``trigger_time`` (``time``), or ``trigger_delay`` after the
     frame at which the capture's outcome is decided ``captured`` (``captured``; needs
     ``[outcome]``)."""
@@ -389,6 +390,34 @@ class Thrust:
     """Start of the burn with trigger ``time`` [s]."""
     trigger_delay: float = _f(0.0, "s", ">=0")
     """Delay from the capture's decision to the start of the burn with trigger
+    ``captured`` [s]."""
+
+
+@dataclass(frozen=True)
+class Reel:
+    enabled: bool = _f(False, "-")
+    """Whether the chaser reels the main tether in or out during the run, changing its
+    deployed length (docs/tow.md); needs ``[tether]`` with a free chaser."""
+    speed: float = _f(0.0, "m/s")
+    """Speed at which the reel's motor changes the deployed length [m/s]: reel-in positive
+    (the tether shortens), pay-out negative; 0: no motor (the brake alone)."""
+    tension_limit: float = _f(0.0, "N", ">=0")
+    """Tension of the tether at the chaser (its last segment) above which the reel's brake
+    slips, paying out just enough to hold it there [N] (docs/tow.md); 0: none (the reel
+    holds any tension)."""
+    min_length: float = _f(1.0, "m", ">0")
+    """Least deployed length of the tether [m]: the motor stops reeling in there."""
+    max_length: float = _f(0.0, "m", ">=0")
+    """Largest deployed length of the tether [m]: the line on the drum runs out there, and
+    neither the motor nor the brake pays out more; 0: no limit."""
+    trigger: str = _f("captured", "-", "choice", TOW_TRIGGERS)
+    """When the reel starts: at ``trigger_time`` (``time``), or ``trigger_delay`` after the
+    frame at which the capture's outcome is decided ``captured`` (``captured``; needs
+    ``[outcome]``), as ``[thrust]``'s burn does. Before that the drum is locked."""
+    trigger_time: float = _f(0.0, "s", ">=0")
+    """Start of the reel with trigger ``time`` [s]."""
+    trigger_delay: float = _f(0.0, "s", ">=0")
+    """Delay from the capture's decision to the start of the reel with trigger
     ``captured`` [s]."""
 
 
@@ -481,6 +510,7 @@ class Scenario:
     strength: Strength = field(default_factory=Strength)
     orbit: Orbit = field(default_factory=Orbit)
     thrust: Thrust = field(default_factory=Thrust)
+    reel: Reel = field(default_factory=Reel)
     tow: TowRules = field(default_factory=TowRules)
     simulation: Simulation = field(default_factory=Simulation)
     outcome: OutcomeRules = field(default_factory=OutcomeRules)
@@ -632,25 +662,50 @@ def _check_orbit(s: Scenario) -> None:
                             "dynamics to put in orbit; use --engine fast or bullet")
 
 
-def _check_tow(s: Scenario) -> None:
-    """A thrust needs a free chaser (and for trigger ``captured`` the judged capture); a
-    judged tow needs a thrust, debris and contact."""
-    th = s.thrust
-    if th.enabled and not (s.tether.enabled and s.tether.chaser_mass > 0):
-        raise ScenarioError(f"{s.source}: thrust.enabled: a thrust needs a chaser "
+def _check_chaser_part(s: Scenario, section: str) -> None:
+    """A part of the chaser (``section`` "thrust" or "reel") needs a free chaser, an engine
+    other than the reference, and for trigger ``captured`` the judged capture."""
+    rules = getattr(s, section)
+    if not rules.enabled:
+        return
+    if not (s.tether.enabled and s.tether.chaser_mass > 0):
+        raise ScenarioError(f"{s.source}: {section}.enabled: a {section} needs a chaser "
                             "(tether.enabled with tether.chaser_mass > 0)")
-    if th.enabled and s.simulation.engine == "reference":
-        raise ScenarioError(f"{s.source}: thrust.enabled: the reference engine has no "
-                            "thrust; use --engine fast or bullet")
+    if s.simulation.engine == "reference":
+        raise ScenarioError(f"{s.source}: {section}.enabled: the reference engine has no "
+                            f"{section}; use --engine fast or bullet")
+    if rules.trigger == "captured" and (not s.outcome.enabled or s.outcome.stop_when_decided):
+        raise ScenarioError(f"{s.source}: {section}.trigger: 'captured' needs outcome.enabled "
+                            "without outcome.stop_when_decided; use 'time'")
+
+
+def _check_reel(s: Scenario) -> None:
+    """A reel does something, and the tether's length lies within its limits."""
+    r, length = s.reel, s.tether.length
+    if r.speed == 0 and r.tension_limit == 0:
+        raise ScenarioError(f"{s.source}: reel.speed: a reel without a speed [m/s] or a "
+                            "reel.tension_limit [N] does nothing; give one")
+    if r.min_length > length:
+        raise ScenarioError(f"{s.source}: reel.min_length: expected at most tether.length "
+                            f"({length:g} m), got {r.min_length:g} m")
+    if 0 < r.max_length < length:
+        raise ScenarioError(f"{s.source}: reel.max_length: expected at least tether.length "
+                            f"({length:g} m), or 0 for no limit, got {r.max_length:g} m")
+
+
+def _check_tow(s: Scenario) -> None:
+    """A thrust and a reel need a free chaser (and for trigger ``captured`` the judged
+    capture); a judged tow needs a thrust, debris and contact."""
+    th = s.thrust
+    _check_chaser_part(s, "thrust")
+    _check_chaser_part(s, "reel")
+    if s.reel.enabled:
+        _check_reel(s)
     if th.enabled and math.hypot(*th.direction) == 0:
         raise ScenarioError(f"{s.source}: thrust.direction: expected a nonzero direction [-]")
     if th.enabled and th.pretension >= th.force:
         raise ScenarioError(f"{s.source}: thrust.pretension: expected less than thrust.force "
                             f"({th.force:g} N), got {th.pretension:g} N")
-    if th.enabled and th.trigger == "captured" and (
-            not s.outcome.enabled or s.outcome.stop_when_decided):
-        raise ScenarioError(f"{s.source}: thrust.trigger: 'captured' needs outcome.enabled "
-                            "without outcome.stop_when_decided; use 'time'")
     if s.tow.enabled and not (th.enabled and s.debris.asset and s.contact.enabled):
         raise ScenarioError(f"{s.source}: tow.enabled: judging a tow needs thrust.enabled, "
                             "debris (debris.asset) and contact (contact.enabled)")

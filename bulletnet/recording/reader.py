@@ -67,6 +67,11 @@ class Recording:
     and ``breaking_tension`` (C,) [N] and ``peak_tension`` (T, C) [N] where recorded,
     ``failure_time`` (C,) [s] with
     breakage (see :mod:`bulletnet.recording.writer`); else None."""
+    tether: dict | None = None
+    """Scenes with a reel at the chaser: ``threads`` (S,) (the reeled threads in
+    ``/threads``, the chaser's last) and per frame the deployed ``length`` (T,) [m] and the
+    reel's ``work`` so far, ``reel_work`` (T,) [J] (see :mod:`bulletnet.recording.writer`);
+    else None."""
 
     @property
     def nodes_per_side(self) -> int:
@@ -132,6 +137,7 @@ def open_recording(path: str | os.PathLike) -> Recording:
                 debris=_group(f, "debris", frames),
                 contacts=_group(f, "contacts", frames),
                 cables=_group(f, "cables", frames),
+                tether=_group(f, "tether", frames),
             )
         except (KeyError, OSError) as exc:
             raise RecordingError(f"{p}: damaged recording ({exc})") from None

@@ -51,6 +51,13 @@ path                      shape         meaning
 /cables/length            (T, C)        length along the cable's polyline [m]
 /cables/rest_length       (T, C)        rest length, shortened by the winch [m]
 /cables/work              (T, C)        work done by the cable's winch so far [J]
+/tether/threads           (S,)          the tether's threads the reel at the chaser reels,
+                                        in /threads, the chaser's last [-] (scenes with
+                                        [reel])
+/tether/length            (T,)          the tether's deployed length at the frame, its
+                                        threads' rest lengths summed [m]
+/tether/reel_work         (T,)          work done by the reel so far [J] (negative: its
+                                        brake took energy out)
 /threads/failure_time     (P,)          when the thread failed, -1 if intact [s]
                                         (``strength.breakage`` on; written at the end)
 /cables/failure_time      (C,)          when the cable failed, -1 if intact [s]
@@ -70,7 +77,8 @@ completed / interrupted / diverged), ``message``, ``wall_time_s`` [s], ``bulletn
 ``first_self_contact_s`` [s] (to the step; -1: none); with ``[outcome]`` on, ``outcome``
 (captured, escaped, missed or undecided), ``outcome_time_s``, when it was decided [s]
 (-1: undecided), and ``outcome_reason``, why in words
-(:data:`bulletnet.analysis.capture_score.REASONS`; recordings before it lack it). ``/debris``
+(:data:`bulletnet.analysis.capture_score.REASONS`; recordings before it lack it); with
+``[reel]``, ``reel_start_s``, when the reel started [s] (-1: never). ``/debris``
 carries
 ``mass`` [kg], ``inertia`` [kg m^2] (3, 3) about the centre of mass and ``center_of_mass`` [m]
 (body frame).
@@ -110,12 +118,15 @@ def _reason(exc: OSError) -> str:
 class Recorder:
     """Append frames of a run to an HDF5 file; use as a context manager or call :meth:`close`.
     The file's folder is created if it does not exist. With ``peaks`` every frame also
-    carries each element's largest tension since the frame before (:meth:`append`)."""
+    carries each element's largest tension since the frame before (:meth:`append`); with
+    ``reel_threads`` S > 0, the tether reeled at the chaser (the model's last S threads):
+    its deployed length and the reel's work."""
 
     def __init__(self, path: str | os.PathLike, model: NetModel, attrs: dict,
                  oriented: bool = False, flush_interval: float = FLUSH_INTERVAL_S,
                  debris=None, contact: bool = False,
-                 interior_samples: np.ndarray | None = None, peaks: bool = False):
+                 interior_samples: np.ndarray | None = None, peaks: bool = False,
+                 reel_threads: int = 0):
         import h5py
 
         self.path = Path(path)
@@ -205,6 +216,10 @@ class Recorder:
             if peaks:
                 self._series["cable_peak_tension"] = growing(
                     "cables/peak_tension", (model.cable_count,), "N")
+        if reel_threads:
+            static("tether/threads", np.arange(p - reel_threads, p), "1")
+            self._series["tether_length"] = growing("tether/length", (), "m")
+            self._series["tether_reel_work"] = growing("tether/reel_work", (), "J")
         if contact:
             self._series["contact_count"] = growing("contacts/count", (), "1")
             self._series["contact_force"] = growing("contacts/normal_force", (), "N")
@@ -215,14 +230,16 @@ class Recorder:
 
     def append(self, state: NetState, tension: np.ndarray, shear: np.ndarray,
                contacts: dict | None = None, cables: dict | None = None,
-               peaks: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+               peaks: tuple[np.ndarray, np.ndarray] | None = None,
+               reel: dict | None = None) -> None:
         """Add one frame: the state, thread tensions and shear forces (P,) [N], the
         contact forces since the last frame (``node_force``, ``self_force`` (N,) [N], as
         :meth:`bulletnet.engines.base.Engine.contact_loads` gives them), the closing
         cables (as :meth:`~bulletnet.engines.base.Engine.cable_loads` gives them) and, for a
         recorder with peaks, each thread's (P,) and cable's (C,) largest tension in the steps
         since the frame before [N] (as :meth:`~bulletnet.engines.base.Engine.peak_tensions`
-        gives them; the larger of them and the frame's own tension is recorded)."""
+        gives them; the larger of them and the frame's own tension is recorded) and the reel
+        at the chaser (as :meth:`~bulletnet.engines.base.Engine.reel_loads` gives it)."""
         values = {"time": state.time, "position": state.position, "velocity": state.velocity,
                   "tension": tension, "shear": shear,
                   "orientation": state.orientation, "angular_velocity": state.angular_velocity}
@@ -240,6 +257,8 @@ class Recorder:
                           contact_self_count=np.count_nonzero(contacts["self_force"]))
         if cables is not None:
             values.update({"cable_" + k: v for k, v in cables.items()})
+        if reel is not None:
+            values.update(tether_length=reel["length"], tether_reel_work=reel["work"])
         if "peak_tension" in self._series:
             thread_peaks, cable_peaks = peaks
             values["peak_tension"] = np.maximum(thread_peaks, tension)

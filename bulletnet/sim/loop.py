@@ -25,7 +25,7 @@ from ..recording.writer import Recorder
 from .compile_ahead import compile_ahead
 from .observers import Breakage, Observer, Outcome, Profiling, Recording, Run
 from .profiling import Profile
-from .tow import ThrustControl, TowOutcome
+from .tow import ReelControl, ThrustControl, TowOutcome
 from .winch import WinchControl
 
 MAX_RECORDING_BYTES = 2e9
@@ -237,7 +237,7 @@ def _observers(scenario: Scenario, model, engine, state: NetState,
     """The observers of a run, in the order they see each frame: the winch control (its
     wrap trigger acts before the frame is recorded), the recorder, the outcome monitor, the
     thrust control (it starts the burn at the frame that decides the capture) and the tow's
-    judge, the profiler."""
+    judge, the reel control (it starts the reel likewise), the profiler."""
     observers: list[Observer] = []
     if scenario.closing.enabled:
         observers.append(WinchControl(scenario))
@@ -252,7 +252,8 @@ def _observers(scenario: Scenario, model, engine, state: NetState,
             "bending": scenario.bending.enabled,
             "bulletnet_version": _version(),
         }, oriented=state.oriented, debris=engine.debris, interior_samples=samples,
-            contact=scenario.contact.enabled, peaks=True)))
+            contact=scenario.contact.enabled, peaks=True,
+            reel_threads=0 if engine.arrays.reel is None else engine.arrays.reel.pairs.shape[0])))
     outcome = Outcome(scenario, model, engine, samples) if scenario.outcome.enabled else None
     if outcome is not None:
         observers.append(outcome)
@@ -264,6 +265,8 @@ def _observers(scenario: Scenario, model, engine, state: NetState,
             geometry = (outcome.monitor.geometry if outcome is not None else
                         ScoreGeometry.of(model, samples, engine.debris.center_of_mass))
             observers.append(TowOutcome(scenario, geometry, thrust))
+    if scenario.reel.enabled:
+        observers.append(ReelControl(scenario, None if outcome is None else outcome.monitor))
     if engine.breakage is not None:
         observers.append(Breakage())
     if profile is not None:

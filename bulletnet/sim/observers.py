@@ -81,7 +81,7 @@ class Recording(Observer):
     def frame(self, run: Run) -> bool:
         engine = run.engine
         self.recorder.append(run.state, *engine.thread_loads(run.state), run.contacts,
-                             engine.cable_loads(), engine.peak_tensions())
+                             engine.cable_loads(), engine.peak_tensions(), engine.reel_loads())
         return False
 
     def finish(self, run: Run, status: str, attrs: dict) -> None:

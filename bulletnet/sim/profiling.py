@@ -107,8 +107,8 @@ def _force_loop(steps, every, pos, vel, quat, omega, model, work, gravity, exter
         else:
             external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
                             False)
-            axial_forces(pos, vel, model.pairs, model.rest, model.k_a, model.c_a,
-                         model.bilateral, work.force, work.tension)
+            axial_forces(pos, vel, model.pairs, model.rest, model.rest_rate, model.k_a,
+                         model.c_a, model.bilateral, work.force, work.tension)
         work.step_count[0] += 1
 
 

@@ -1,14 +1,18 @@
-"""The tow: the chaser's burn and the judge of its outcome, as observers of the run loop.
+"""The tow: the chaser's burn, its reel and the judge of the tow's outcome, as observers of
+the run loop.
 
 - :class:`ThrustControl` starts the burn by the scene's trigger (``[thrust]``: a time, or a
-  delay after the frame at which the capture is decided ``captured``) and, as an engine step
-  hook, sets the chaser's external force to the profile's mean over the steps to come (the
-  fast engine's chunks of ``debris.step``, 1/240 s by default; bullet's steps): the impulse
-  delivered is the profile's to round-off (:mod:`bulletnet.model.thrust`). With
-  ``strength.breakage`` on, a failed tether thread ends the burn (the chaser is cut loose).
+  delay after the frame at which the capture is decided ``captured``: :class:`Trigger`)
+  and, as an engine step hook, sets the chaser's external force to the profile's mean over
+  the steps to come (the fast engine's chunks of ``debris.step``, 1/240 s by default;
+  bullet's steps): the impulse delivered is the profile's to round-off
+  (:mod:`bulletnet.model.thrust`). With ``strength.breakage`` on, a failed tether thread
+  ends the burn (the chaser is cut loose).
 - :class:`TowOutcome` judges the tow from the burn's start on, frame by frame
   (:class:`~bulletnet.analysis.tow_score.TowMonitor`), and adds its outcome and measures to
   the recording.
+- :class:`ReelControl` starts the reel at the chaser (``[reel]``) by the same rules; the
+  engine reels from then on (:mod:`bulletnet.kernels.reel`).
 """
 
 from __future__ import annotations
@@ -23,18 +27,37 @@ from ..model.thrust import ThrustProfile, axial_mode
 from .observers import Observer, Run
 
 
+class Trigger:
+    """When a part of the tow starts, by its table's ``trigger``, ``trigger_time`` [s] and
+    ``trigger_delay`` [s] (``[thrust]``, ``[reel]``): at the trigger time (``time``), or the
+    delay after the frame at which ``capture`` decides the capture ``captured``
+    (``captured``; ``capture`` None for ``time``)."""
+
+    def __init__(self, rules, capture: OutcomeMonitor | None):
+        self.rules = rules
+        self.capture = capture
+
+    def start_time(self) -> float | None:
+        """The start time [s], once it is known; None before."""
+        if self.rules.trigger == "time":
+            return self.rules.trigger_time
+        if self.capture is not None and self.capture.outcome == "captured":
+            return self.capture.time + self.rules.trigger_delay
+        return None
+
+
 class ThrustControl(Observer):
     """Starts and applies the chaser's burn (module doc); ``capture`` judges the capture
     for trigger ``captured`` (None for trigger ``time``)."""
 
     def __init__(self, scenario, model, engine, capture: OutcomeMonitor | None):
         self.rules = scenario.thrust
+        self.trigger = Trigger(self.rules, capture)
         self.mode = axial_mode(scenario, model,
                                0.0 if engine.debris is None else engine.debris.mass)
         """The tether's axial mode the shaper is tuned to."""
         direction = np.asarray(self.rules.direction, dtype=float)
         self.direction = direction / np.linalg.norm(direction)
-        self.capture = capture
         self.chaser = model.node_count - 1
         """The chaser's node: the tether's far end, the model's last node."""
         self.profile: ThrustProfile | None = None
@@ -47,12 +70,14 @@ class ThrustControl(Observer):
         hook after)."""
 
     def start(self, run: Run) -> None:
-        if self.rules.trigger == "time":
-            self._begin(self.rules.trigger_time)
+        self._begin()
         run.engine.step_hooks.append(lambda: self._apply(run.engine))
 
-    def _begin(self, t: float) -> None:
-        self.profile = ThrustProfile(self.rules, t, self.mode.omega, self.mode.zeta)
+    def _begin(self) -> None:
+        """Start the burn once its trigger's start time is known."""
+        start = self.trigger.start_time() if self.profile is None else None
+        if start is not None:
+            self.profile = ThrustProfile(self.rules, start, self.mode.omega, self.mode.zeta)
 
     def _apply(self, engine) -> None:
         if self.profile is not None:
@@ -62,9 +87,7 @@ class ThrustControl(Observer):
                                             self.profile.mean(*engine.span) * self.direction)
 
     def frame(self, run: Run) -> bool:
-        if (self.profile is None and self.capture is not None
-                and self.capture.outcome == "captured"):
-            self._begin(self.capture.time + self.rules.trigger_delay)
+        self._begin()
         return False
 
     def finish(self, run: Run, status: str, attrs: dict) -> None:
@@ -101,3 +124,22 @@ class TowOutcome(Observer):
     def finish(self, run: Run, status: str, attrs: dict) -> None:
         self.monitor.finish(status == "completed")
         attrs.update(self.monitor.attributes())
+
+
+class ReelControl(Observer):
+    """Starts the reel at the chaser (``[reel]``) by its :class:`Trigger`; ``capture`` judges
+    the capture for trigger ``captured`` (None for trigger ``time``). At the end, its start
+    time into the run's attributes (``reel_start_s`` [s], -1: never started)."""
+
+    def __init__(self, scenario, capture: OutcomeMonitor | None):
+        self.trigger = Trigger(scenario.reel, capture)
+
+    def frame(self, run: Run) -> bool:
+        start = None if run.engine.reel_started else self.trigger.start_time()
+        if start is not None:
+            run.engine.start_reel(start)
+        return False
+
+    def finish(self, run: Run, status: str, attrs: dict) -> None:
+        reel = run.engine.arrays.reel
+        attrs["reel_start_s"] = float(reel.start_time[0]) if run.engine.reel_started else -1.0

@@ -169,6 +169,9 @@ class Grid(NamedTuple):
     orbit: OrbitArrays | None = None
     """The reference orbit (HCW forces into the other rows, :mod:`bulletnet.kernels.orbit`);
     None without."""
+    o_rest_rate: np.ndarray | None = None
+    """The other threads' rest-length rates [m/s], shape (Q,) (a tether reeled at the chaser,
+    :mod:`bulletnet.kernels.reel`); None without a reel (all zero)."""
 
 
 class GridViews(NamedTuple):
@@ -222,10 +225,10 @@ def _carve(shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
 
 
 def build(model: NetModel, cables: CableArrays | None = None,
-          orbit: OrbitArrays | None = None) -> Grid:
+          orbit: OrbitArrays | None = None, rest_rate: np.ndarray | None = None) -> Grid:
     """The grid of a net that :func:`applies`: its threads' parameters rearranged by stencil
-    and zeroed state and scratch, its closing ``cables`` and reference ``orbit`` (None:
-    none)."""
+    and zeroed state and scratch, its closing ``cables``, reference ``orbit`` and the
+    threads' rest-length rates ``rest_rate`` [m/s] (P,) (None: none)."""
     ns, count, pairs, mass = model.nodes_per_side, model.node_count, model.pairs, model.mass
     per_thread = np.vstack([  # rows: rest, k, c, then the bending parameters (h_bend)
         model.rest_length, model.axial_stiffness, model.axial_damping,
@@ -257,7 +260,8 @@ def build(model: NetModel, cables: CableArrays | None = None,
         blocks=blocks, wh=wh, wv=wv, cg=cg, block_inv=block_inv, o_tension=np.zeros(q),
         o_along=np.zeros(q), o_across=np.zeros(q), o_axis=o_axis, o_bend=o[3:7].copy(),
         o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q), bh=bh, bv=bv,
-        cables=cables, orbit=orbit)
+        cables=cables, orbit=orbit,
+        o_rest_rate=None if rest_rate is None else rest_rate[inner:].copy())
 
 
 def views(grid: Grid) -> GridViews:
@@ -318,10 +322,11 @@ def _neighbours(start, h, v, a, i, ns, sign):
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def _row_tension(x, v, t, j, rest, k, c):
     """:func:`~bulletnet.kernels.axial.tension_law` of thread t, from node t to node j of the
-    (3, L) rows x [m] and v [m/s]: (T [N], ex, ey, ez, l [m])."""
+    (3, L) rows x [m] and v [m/s]: (T [N], ex, ey, ez, l [m]) (a grid thread's rest length
+    never changes: its rate is 0)."""
     return tension_law(x[0, j] - x[0, t], x[1, j] - x[1, t], x[2, j] - x[2, t],
-                       v[0, j] - v[0, t], v[1, j] - v[1, t], v[2, j] - v[2, t], rest[t], k[t],
-                       c[t], False)
+                       v[0, j] - v[0, t], v[1, j] - v[1, t], v[2, j] - v[2, t], rest[t], 0.0,
+                       k[t], c[t], False)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -372,12 +377,12 @@ def _other_threads(grid, views, dt, linearize):
     clear_cable_nodes(cables, other)
     clear_orbit_nodes(grid.orbit, other)
     if linearize:
-        axial_linearization(views.position, views.velocity, pairs, grid.o_rest, grid.o_k,
-                            grid.o_c, False, dt, other, grid.o_tension, grid.o_along,
-                            grid.o_across, grid.o_axis)
+        axial_linearization(views.position, views.velocity, pairs, grid.o_rest,
+                            grid.o_rest_rate, grid.o_k, grid.o_c, False, dt, other,
+                            grid.o_tension, grid.o_along, grid.o_across, grid.o_axis)
     else:
-        axial_forces(views.position, views.velocity, pairs, grid.o_rest, grid.o_k, grid.o_c,
-                     False, other, grid.o_tension)
+        axial_forces(views.position, views.velocity, pairs, grid.o_rest, grid.o_rest_rate,
+                     grid.o_k, grid.o_c, False, other, grid.o_tension)
     cable_forces(views.position, views.velocity, cables, other, linearize, dt)
     orbit_forces(views.position, views.velocity, grid.mass, grid.orbit, other)
 

@@ -48,6 +48,7 @@ from ..kernels.cable import (
 )
 from ..kernels.orbit import OrbitArrays, orbit_forces
 from ..kernels.peaks import track_cables, track_threads
+from ..kernels.reel import ReelArrays, reel_tether
 from ..model.net import NetModel
 from . import grid as grid_kernels
 from . import pcg
@@ -119,13 +120,23 @@ class ModelArrays(NamedTuple):
     orbit: OrbitArrays | None = None
     """The reference orbit whose HCW accelerations every node feels
     (:mod:`bulletnet.kernels.orbit`); None without (nothing compiled)."""
+    reel: ReelArrays | None = None
+    """The reel at the chaser, which sets the tether's rest lengths, their rates, stiffness
+    and damping in ``rest``, ``rest_rate``, ``k_a`` and ``c_a`` (:mod:`bulletnet.kernels.reel`;
+    they must then be writable); None without (nothing compiled)."""
+    rest_rate: np.ndarray | None = None
+    """Thread rest-length rates l_0' [m/s], shape (P,), which the dampers subtract (the
+    reeled tether's; :mod:`bulletnet.kernels.axial`); None without a reel (all zero, nothing
+    read)."""
 
 
 def model_arrays(model: NetModel, cables: CableArrays | None = None,
-                 orbit: OrbitArrays | None = None) -> ModelArrays:
+                 orbit: OrbitArrays | None = None, reel: ReelArrays | None = None
+                 ) -> ModelArrays:
     """The model's arrays as the compiled kernels read them, with the closing ``cables``
-    (:func:`~bulletnet.kernels.cable.cable_arrays`; None, or none in them: no cables) and
-    the reference ``orbit`` (None: none)."""
+    (:func:`~bulletnet.kernels.cable.cable_arrays`; None, or none in them: no cables), the
+    reference ``orbit`` and the ``reel`` at the chaser (None: none; with one, the threads'
+    rest-length rates, zero)."""
     m = model
     rot_c, rot_k = rotational_bounds(m)
     return ModelArrays(
@@ -135,7 +146,8 @@ def model_arrays(model: NetModel, cables: CableArrays | None = None,
         rest_axis=m.rest_axis, fixed=m.fixed, load=m.load, bilateral=m.bilateral,
         inv_mass=np.where(m.fixed, 0.0, 1.0 / m.mass),  # clamped nodes: no velocity change
         radius=m.radius, rot_c=rot_c, rot_k=rot_k,
-        cables=cables if cables is not None and cables.rest.shape[0] else None, orbit=orbit)
+        cables=cables if cables is not None and cables.rest.shape[0] else None, orbit=orbit,
+        reel=reel, rest_rate=None if reel is None else np.zeros(m.thread_count))
 
 
 class Workspace(NamedTuple):
@@ -318,8 +330,8 @@ def implicit_increment(pos, vel, model, work, dt, tol):
     dv, cg = work.dv, work.cg
     n = pos.shape[0]
     cables = model.cables
-    axial_linearization(pos, vel, pairs, model.rest, k_a, model.c_a, model.bilateral, dt,
-                        force, work.tension, along, across, axis)
+    axial_linearization(pos, vel, pairs, model.rest, model.rest_rate, k_a, model.c_a,
+                        model.bilateral, dt, force, work.tension, along, across, axis)
     cable_forces(pos, vel, cables, force, True, dt)
     orbit_forces(pos, vel, model.mass, model.orbit, force)  # explicit, Coriolis included
     r = cg[0]
@@ -345,8 +357,8 @@ def symplectic_increment(pos, vel, model, work, dt):
     """Velocity increment dv = dt F / m [m/s] of one symplectic Euler step, into work's dv.
     Work's force must hold the non-axial forces on entry (:func:`external_forces`)."""
     inv_mass, force, dv = model.inv_mass, work.force, work.dv
-    axial_forces(pos, vel, model.pairs, model.rest, model.k_a, model.c_a, model.bilateral,
-                 force, work.tension)
+    axial_forces(pos, vel, model.pairs, model.rest, model.rest_rate, model.k_a, model.c_a,
+                 model.bilateral, force, work.tension)
     cable_forces(pos, vel, model.cables, force, False, 0.0)
     orbit_forces(pos, vel, model.mass, model.orbit, force)
     for i in range(pos.shape[0]):
@@ -420,7 +432,10 @@ def advance(on_grid: bool, implicit: bool):
     (:mod:`bulletnet.kernels.breakage`; ``breakage`` None: none, nothing compiled; the
     model's thread arrays k_a .. c_b must then be writable); after each step each element's
     running maximum of its tension is kept (:mod:`bulletnet.kernels.peaks`; ``peaks``
-    None: none, nothing compiled). Returns the steps
+    None: none, nothing compiled); last, the reel at the chaser sets the tether's rest
+    lengths for the next step from the state the step ended in
+    (:func:`~bulletnet.kernels.reel.reel_tether`, into the pair list's arrays or the grid's
+    other threads'; model's reel None: none). Returns the steps
     taken: fewer only if the self-contact list must grow first (the caller grows it and
     continues). The caller checks the result for non-finite values; a diverging chunk is at
     most one record interval. The bending springs, evaluated every ``every`` steps, act as
@@ -505,6 +520,12 @@ def advance(on_grid: bool, implicit: bool):
                                   model.c_a, model.k_t, model.c_t, model.k_b, model.c_b,
                                   breakage, t0 + k * dt)
                 break_cables(pos, model.cables, breakage, t0 + k * dt)
+            if on_grid:  # the tether's rest lengths for the next step, where the step reads them
+                reel_tether(pos, vel, model.reel, grid.o_rest, grid.o_rest_rate, grid.o_k,
+                            grid.o_c, t0 + k * dt, dt)
+            else:
+                reel_tether(pos, vel, model.reel, model.rest, model.rest_rate, model.k_a,
+                            model.c_a, t0 + k * dt, dt)
             taken += 1
         if quat is not None:
             if pending > 0:
