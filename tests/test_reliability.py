@@ -25,6 +25,9 @@ from tests.conftest import small_scene
 # wall time on a quiet machine; 2 s simulated took 1.4 s, less than the signal tests' wait)
 SLOW = ["run", "deployment", "--set", "net.nodes_per_side=6", "--duration", "4",
         "--record-rate", "200", "--quiet"]
+# the same for the signal tests, long enough that no machine ends it before the signal (the
+# signal comes 1.5 s after the recording opens; 4 s simulated has been seen to finish first)
+SIGNALLED = [*SLOW[:-4], "60", *SLOW[-3:]]
 
 
 def start(args, out):
@@ -42,7 +45,7 @@ def wait_for(path, timeout=60.0):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_signal_keeps_frames_and_marks_interrupted(tmp_path, sig):
     out = tmp_path / "run.h5"
-    proc = start(SLOW, out)
+    proc = start(SIGNALLED, out)
     wait_for(tmp_path / "run.h5.part")
     time.sleep(1.5)
     proc.send_signal(sig)
@@ -56,7 +59,7 @@ def test_signal_keeps_frames_and_marks_interrupted(tmp_path, sig):
 
 def test_second_ctrl_c_still_leaves_a_readable_file(tmp_path):
     out = tmp_path / "run.h5"
-    proc = start(SLOW, out)
+    proc = start(SIGNALLED, out)
     wait_for(tmp_path / "run.h5.part")
     time.sleep(1.5)
     proc.send_signal(signal.SIGINT)
