@@ -74,7 +74,7 @@ def audit(model: NetModel, pos0: np.ndarray, state: NetState) -> float:
     pytest.param("sequential", marks=pytest.mark.xfail(
         strict=True, reason="the sequential stage solves the stacked contacts one by one: "
         "each step ends with overlaps the law did not predict, moved away against the load "
-        "(docs/tow.md, 'The snap breaks the contact stage')")),
+        "(docs/tow.md, 'The snap blows the run up')")),
     "coupled"])
 def test_pressed_column_does_no_more_work_than_its_load(tmp_path, solver):
     # Reference: the work-energy theorem. Three nodes stacked on a plane, the top one
