@@ -260,13 +260,15 @@ def test_spinning_body_keeps_its_inertial_spin_in_the_rotating_frame():
 
 
 def thrust_run(profile, integrator="symplectic_euler", t_end=2.0, frames=2000, burn=0.0,
-               force=10.0, orbit=False, slack=0.0, zeta=0.0, breaking=np.inf, **thrust):
+               force=10.0, orbit=False, slack=0.0, zeta=0.0, breaking=np.inf, tow_integrator="",
+               tow_dt=0.0, **thrust):
     """A chaser of 1 kg on a taut elastic tether (k = 100 N/m, undamped, or of damping ratio
     ``zeta`` in the pair's axial mode) to a point mass of 3 kg, at rest, thrusting
     ``force`` [N] away from it from t = 0 with ``profile`` (and the other ``thrust`` keys);
     ``slack`` [m]: the chaser starts that much closer, the tether slack; ``breaking`` [N]
-    finite: the tether's strength, breakage on: the times [s] (T,), the tether tensions [N]
-    (T,), the final state and the control."""
+    finite: the tether's strength, breakage on; ``tow_integrator``, ``tow_dt``: the burn's
+    (``thrust.integrator``, ``thrust.dt``): the times [s] (T,), the tether tensions [N]
+    (T,), the run (its final state, its engine) and the control."""
     m_d, m_c, length = 3.0, 1.0, 2.0
     area = 100.0 * length / 1e9  # E A / L = 100 N/m with E = 1 GPa
     mu = m_c * m_d / (m_c + m_d)
@@ -280,19 +282,22 @@ def thrust_run(profile, integrator="symplectic_euler", t_end=2.0, frames=2000, b
               simulation__integrator=integrator, simulation__dt=1e-4, scene__duration=t_end,
               orbit__enabled=orbit, orbit__mean_motion=N_FAST,
               strength__breakage=bool(np.isfinite(breaking)),
+              thrust__integrator=tow_integrator, thrust__dt=tow_dt,
               **{f"thrust__{k}": v for k, v in thrust.items()})
     model = point_masses([m_d, m_c], [(0, 1)], [length], [100.0], [2 * zeta * mu * omega],
                          breaking)
     engine = make_engine(s, model)
     state = NetState(0.0, np.array([[0.0, 0, 0], [length - slack, 0, 0]]), np.zeros((2, 3)))
     control = ThrustControl(s, model, engine, None)
-    control.start(Run(s, model, engine, state))
+    view = Run(s, model, engine, state)
+    control.start(view)
     times = np.linspace(0.0, t_end, frames + 1)
     tension = [0.0]
     for t in times[1:]:
         engine.advance(state, float(t))
+        control.frame(view)
         tension.append(engine.thread_loads(state)[0][0])
-    return times, np.array(tension), state, control
+    return times, np.array(tension), view, control
 
 
 @pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
@@ -313,6 +318,34 @@ def test_step_thrust_on_a_tethered_pair(integrator):
     assert 2 * math.pi / np.diff(times[up]).mean() == pytest.approx(omega, rel=1e-2)
 
 
+def test_the_tow_goes_on_with_its_own_integrator_and_step():
+    # The switch of thrust.integrator / thrust.dt at the burn's start (0.5 s): before it
+    # implicit Euler at 1e-4 s, from it symplectic Euler at 5e-5 s, so the engine takes
+    # 0.5 / 1e-4 + 1.5 / 5e-5 steps. Reference: the step's tension from the burn's start,
+    # T = F m_d / M (1 - cos w (t - 0.5)) (test_step_thrust_on_a_tethered_pair), peak twice
+    # the mean F m_d / M within 1 %: the switch leaves the pair's motion continuous.
+    times, tension, run, control = thrust_run("step", "implicit_euler", trigger_time=0.5,
+                                              tow_integrator="symplectic_euler", tow_dt=5e-5)
+    assert (tension[times <= 0.5] == 0.0).all()
+    assert tension.max() == pytest.approx(2 * 10.0 * 3.0 / 4.0, rel=1e-2)
+    attrs = {}
+    control.finish(run, "completed", attrs)
+    assert attrs["thrust_integrator"] == "symplectic_euler" and attrs["thrust_dt_s"] == 5e-5
+    assert run.engine.steps == 5000 + 30000
+
+
+def test_the_removal_tows_on_symplectic_euler_under_its_step_limit():
+    # scenarios/removal.toml's tow: symplectic Euler (docs/tow.md, "The snap blows the run
+    # up") at a step under the analytical limit of the scene's net (stability.py: the
+    # dampers' 2 / gamma_max and the springs' 2 / omega_max, every thread taut).
+    from bulletnet.analysis.stability import scene_limits
+
+    s = bn.load_scenario("removal")
+    limits = scene_limits(s)
+    assert s.thrust.integrator == "symplectic_euler"
+    assert s.thrust.dt < 2.0 / limits.gamma_max and s.thrust.dt < 2.0 / limits.omega_max
+
+
 @pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])
 def test_a_failed_tether_ends_the_burn(integrator):
     # Reference: the step's tension T(t) = F m_d / M (1 - cos w t) (above) reaches a
@@ -320,14 +353,14 @@ def test_a_failed_tether_ends_the_burn(integrator):
     # fails (strength.breakage), carries nothing, and the burn ends with it: the pair's
     # momentum stays the impulse F t_b delivered until then (to within the thrust's chunk,
     # 1/240 s, and one step), and no later tension.
-    times, tension, state, control = thrust_run("step", integrator, t_end=1.0, frames=1000,
+    times, tension, run, control = thrust_run("step", integrator, t_end=1.0, frames=1000,
                                                 breaking=12.0)
     w = math.sqrt(100.0 * (1 / 1.0 + 1 / 3.0))
     t_b = math.acos(1 - 12.0 * 4.0 / (10.0 * 3.0)) / w
     failed = control.tether is not None and times[tension > 0].max()
     assert failed == pytest.approx(t_b, abs=2e-3)
     assert (tension[times > t_b + 2e-3] == 0.0).all()
-    momentum = (np.array([3.0, 1.0])[:, None] * state.velocity).sum(axis=0)
+    momentum = (np.array([3.0, 1.0])[:, None] * run.state.velocity).sum(axis=0)
     assert momentum[0] == pytest.approx(10.0 * t_b, abs=10.0 * (1 / 240 + 1e-4))
     np.testing.assert_allclose(momentum[1:], 0.0, atol=1e-12)
 
@@ -397,10 +430,10 @@ def test_energy_balance_against_the_thrust_work(integrator, orbit):
     n = N_FAST if orbit else 0.0
     start = NetState(0.0, np.array([[0.0, 0, 0], [2.0, 0, 0]]), np.zeros((2, 3)))
     before = jacobi_energy(start, [3.0, 1.0], 100.0, 2.0, n)
-    _, _, state, _ = thrust_run("step", integrator, orbit=orbit, frames=20)
-    work = 10.0 * (state.position[1, 0] - 2.0)
-    gained = jacobi_energy(state, [3.0, 1.0], 100.0, 2.0, n) - before
-    kinetic = 0.5 * np.array([3.0, 1.0]) @ (state.velocity**2).sum(axis=1)
+    _, _, run, _ = thrust_run("step", integrator, orbit=orbit, frames=20)
+    work = 10.0 * (run.state.position[1, 0] - 2.0)
+    gained = jacobi_energy(run.state, [3.0, 1.0], 100.0, 2.0, n) - before
+    kinetic = 0.5 * np.array([3.0, 1.0]) @ (run.state.velocity**2).sum(axis=1)
     coriolis = kinetic * (2 * n * 1e-4) ** 2 * 2.0 / 1e-4  # the explicit Coriolis' growth
     assert work > 10.0 and coriolis < 0.003 * max(kinetic, work)
     if integrator == "symplectic_euler":
@@ -430,9 +463,9 @@ def test_thrust_momentum_is_the_thrust_impulse(integrator, orbit):
     # profile's integral (a burn_time of 0.5 s whose rise and fall ramp over 0.3 s each:
     # F times 0.5 s), to round-off. (With an orbit the HCW forces also act: the check is
     # then that it differs.)
-    *_, state, control = thrust_run("ramp", integrator, t_end=1.5, frames=30, burn=0.5,
+    *_, run, control = thrust_run("ramp", integrator, t_end=1.5, frames=30, burn=0.5,
                                     orbit=orbit)
-    momentum = (np.array([3.0, 1.0])[:, None] * state.velocity).sum(axis=0)
+    momentum = (np.array([3.0, 1.0])[:, None] * run.state.velocity).sum(axis=0)
     impulse = control.profile.impulse(1.5)
     assert impulse == pytest.approx(10.0 * 0.5, rel=1e-12)
     if orbit:
@@ -485,7 +518,8 @@ def test_removal_scene_runs_in_orbit_with_its_shaped_burn(tmp_path):
     mode = axial_mode(s, bn.build_model(s), scene_debris(s).mass)
     assert mode.stiffness == pytest.approx(70e9 * math.pi * 1e-6 / 50.0, rel=1e-12)
     assert mode.omega == pytest.approx(2.1835, abs=1e-4)
-    short = s.with_overrides({"scene.duration": 1.0, "thrust.trigger": "time"})
+    short = s.with_overrides({"scene.duration": 1.0, "thrust.trigger": "time",
+                              "thrust.integrator": "", "thrust.dt": 0.0})  # (the burn alone)
     result = bn.run(short, tmp_path / "removal.h5")
     attrs = bn.open_recording(result.path).attrs
     assert result.status == "completed" and attrs["thrust_start_s"] == 0.0

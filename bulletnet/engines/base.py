@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
@@ -247,6 +248,18 @@ class Engine(ABC):
     def dt(self) -> float:
         """Requested step [s] (the engine may shorten it to divide the record interval)."""
         return self.scenario.simulation.step
+
+    def switch_integrator(self, integrator: str, dt: float) -> None:
+        """Go on with ``integrator`` ('' keeps the current one) at steps of ``dt`` [s] (0 keeps
+        the current step) from the next :meth:`advance` (the tow's: ``thrust.integrator``,
+        ``thrust.dt``)."""
+        sim = self.scenario.simulation
+        sim = dataclasses.replace(sim, integrator=integrator or sim.integrator,
+                                  dt=dt or sim.dt)
+        self.scenario = dataclasses.replace(self.scenario, simulation=sim)
+        if self.bending and not self.scenario.bending.every:
+            self.bending_every = bending_interval(self.model, self.dt,
+                                                  BENDING_MARGINS[self.integrator])
 
     def steps_for(self, interval: float) -> int:
         """Whole number of steps covering ``interval`` [s] with steps no longer than :attr:`dt`."""

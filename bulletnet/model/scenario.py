@@ -391,6 +391,13 @@ class Thrust:
     trigger_delay: float = _f(0.0, "s", ">=0")
     """Delay from the capture's decision to the start of the burn with trigger
     ``captured`` [s]."""
+    integrator: str = _f("", "-", "choice", ("", *INTEGRATORS))
+    """Integrator from the first frame at or after the burn's start ('': the scene's,
+    ``simulation.integrator``): a tether snapping taut into a net cinched on the debris needs
+    symplectic Euler at a small step, where implicit Euler's large one makes energy
+    (docs/tow.md, "The snap blows the run up")."""
+    dt: float = _f(0.0, "s", ">=0")
+    """Time step from then on [s]; 0: the scene's (``simulation.dt``)."""
 
 
 @dataclass(frozen=True)

@@ -68,10 +68,24 @@ class ThrustControl(Observer):
         """The main tether's threads (with ``strength.breakage`` on; None without): once one
         has failed the chaser is cut loose and the burn ends (no thrust from the step
         hook after)."""
+        self.switched = False
+        """Whether the tow's integrator and step (``thrust.integrator``, ``thrust.dt``) are
+        in force."""
 
     def start(self, run: Run) -> None:
         self._begin()
+        self._switch(run)
         run.engine.step_hooks.append(lambda: self._apply(run.engine))
+
+    def _switch(self, run: Run) -> None:
+        """From the first frame at or after the burn's start: the tow's integrator and step,
+        if the scene gives them."""
+        p, rules = self.profile, self.rules
+        if (p is None or self.switched or run.state.time < p.times[0] - 1e-9
+                or not (rules.integrator or rules.dt)):
+            return
+        run.engine.switch_integrator(rules.integrator, rules.dt)
+        self.switched = True
 
     def _begin(self) -> None:
         """Start the burn once its trigger's start time is known."""
@@ -88,11 +102,14 @@ class ThrustControl(Observer):
 
     def frame(self, run: Run) -> bool:
         self._begin()
+        self._switch(run)
         return False
 
     def finish(self, run: Run, status: str, attrs: dict) -> None:
         m, p = self.mode, self.profile
         attrs.update(
+            thrust_integrator=run.engine.integrator if self.switched else "",
+            thrust_dt_s=run.engine.dt if self.switched else 0.0,
             thrust_start_s=-1.0 if p is None else float(p.times[0]),
             thrust_impulse_Ns=0.0 if p is None else p.impulse(run.state.time),
             thrust_axial_frequency_rad_s=m.omega, thrust_damping_ratio=m.zeta,
