@@ -16,7 +16,8 @@ surface on the nodes is small). A stage that makes energy shows as a rising sum.
 Writes OUT/stage_energy.json (every 0.01 s: time [s], the sums [J], the energies [J], the
 overlap projections so far [-, m], the largest closing-cable tension [N]) and prints every
 0.1 s. Implicit Euler, the sequential contact stage, no bending, no breakage and no reel only
-(the stages it copies); the pair-list kernels (``simulation.kernels = "pairs"``) are forced.
+(the stages it copies); the pair-list kernels (``simulation.kernels = "pairs"``) and the
+scene's integrator throughout (no tow integrator: ``thrust.integrator = ""``) are forced.
 """
 
 from __future__ import annotations
@@ -131,7 +132,8 @@ def main() -> None:
     args = p.parse_args()
     overrides = {k: tomllib.loads(f"v = {v}")["v"]
                  for k, v in (item.split("=", 1) for item in args.set)}
-    overrides.update({"scene.duration": args.end, "simulation.kernels": "pairs"})
+    overrides.update({"scene.duration": args.end, "simulation.kernels": "pairs",
+                      "thrust.integrator": "", "thrust.dt": 0.0})  # implicit Euler throughout
     scene = bn.load_scenario(args.scene, overrides)
     if (scene.simulation.integrator != "implicit_euler" or scene.bending.enabled
             or scene.contact.solver != "sequential" or scene.reel.enabled
