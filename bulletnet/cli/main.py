@@ -840,6 +840,9 @@ def _print_tow(tow: dict) -> None:
           f"N s; tether axial mode {tow['thrust_axial_frequency_rad_s']:.4g} rad/s (damping "
           f"ratio {tow['thrust_damping_ratio']:.3g}, towed mass "
           f"{tow['thrust_towed_mass_kg']:.6g} kg)")
+    if tow.get("thrust_integrator"):
+        print(f"from the burn on: {tow['thrust_integrator']} at steps of "
+              f"{tow['thrust_dt_s']:.3g} s")
     if "tow_outcome" in tow:
         print("tow: " + _outcome_text(tow["tow_outcome"], tow["tow_outcome_time_s"],
                                       tow["tow_outcome_reason"]))
