@@ -334,6 +334,25 @@ def test_the_tow_goes_on_with_its_own_integrator_and_step():
     assert run.engine.steps == 5000 + 30000
 
 
+def test_a_tow_whose_chaser_leaves_the_debris_behind_has_slipped():
+    # The judge's rules (analysis/tow_score.py) on made-up frames: the debris held in the
+    # hull (E = 0.9) while the chaser draws away past tow.lost_distance (a torn net's
+    # scattered nodes may still hull the debris) is `slipped` at that frame; with no such
+    # bound (0) the same frames are `towed`.
+    from bulletnet.analysis.tow_score import TowMonitor
+    from bulletnet.model.scenario import TowRules
+
+    frames = [(t, 100.0, 50.0 + 5.0 * t, 0.9, 0.0) for t in np.arange(0.0, 6.0, 1.0)]
+    lost = TowMonitor(TowRules(enabled=True, lost_distance=70.0))
+    kept = TowMonitor(TowRules(enabled=True))
+    for monitor in (lost, kept):
+        for frame in frames:
+            monitor.update(*frame)
+        monitor.finish(True)
+    assert lost.outcome == "slipped" and lost.time == 5.0 and "75.00 m" in lost.reason
+    assert kept.outcome == "towed"
+
+
 def test_the_removal_tows_on_symplectic_euler_under_its_step_limit():
     # scenarios/removal.toml's tow: symplectic Euler (docs/tow.md, "The snap blows the run
     # up") at a step under the analytical limit of the scene's net (stability.py: the

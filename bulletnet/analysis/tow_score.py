@@ -7,7 +7,9 @@ the chaser to the debris' centre of mass [m], the debris' enclosed fraction E
 scene's ``[tow]``):
 
 - ``collided``: the distance falls below ``safe_distance`` (the debris overruns the chaser);
-- ``slipped``: E falls below ``enclosed_fraction`` (the debris leaves the net);
+- ``slipped``: E falls below ``enclosed_fraction`` (the debris leaves the net), or the
+  distance exceeds ``lost_distance`` (if set: the net has torn or let go and the chaser
+  leaves the debris behind);
 - ``towed``: neither, by the end of a completed run;
 - ``undecided``: the burn never started, or the run stopped before its end.
 
@@ -28,6 +30,7 @@ from ..model.scenario import TowRules
 REASONS = {
     "collided": "the chaser came within {value:.2f} m of the debris' centre of mass",
     "slipped": "the debris left the net: enclosed fraction {value:.3f}",
+    "lost": "the debris no longer follows: the chaser {value:.2f} m from it",
     "towed": "held and clear of the chaser from {since:.2f} s to the end, {end:.2f} s",
     "not started": "the burn had not started by the end, {end:.2f} s",
     "stopped": "the run stopped at {end:.2f} s, before its end",
@@ -99,10 +102,12 @@ class TowMonitor:
             self._decide("collided", t, distance)
         elif enclosed < r.enclosed_fraction:
             self._decide("slipped", t, enclosed)
+        elif r.lost_distance > 0.0 and distance > r.lost_distance:
+            self._decide("slipped", t, distance, "lost")
 
-    def _decide(self, outcome: str, t: float, value: float) -> None:
+    def _decide(self, outcome: str, t: float, value: float, case: str = "") -> None:
         self.outcome, self.time = outcome, t
-        self.reason = REASONS[outcome].format(value=value)
+        self.reason = REASONS[case or outcome].format(value=value)
 
     def finish(self, completed: bool) -> None:
         """The run ended (``completed``: it reached its end): an undecided tow that started

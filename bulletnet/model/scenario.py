@@ -439,6 +439,10 @@ class TowRules:
     enclosed_fraction: float = _f(0.5, "-", "(0,1]")
     """``slipped``: the share of the debris' volume inside the net's convex hull falls
     below this [-] (the debris leaves the net)."""
+    lost_distance: float = _f(0.0, "m", ">=0")
+    """``slipped`` also: the chaser draws farther than this from the debris' centre of mass
+    [m] (the net has torn or let go and the debris no longer follows, while a torn net's
+    scattered nodes may still hull it); 0: no such bound."""
     slack_tension: float = _f(0.0, "N", ">=0")
     """The tether counts as slack at or below this tension [N] (a snap is the return from
     slack to taut)."""
