@@ -13,7 +13,7 @@ from scipy.integrate import solve_ivp
 import bulletnet as bn
 from bulletnet.kernels.contact import normal_step
 from bulletnet.kernels.geometry import debris_distance
-from bulletnet.model.debris import Debris, Part
+from bulletnet.model.debris import Debris, Part, load_debris
 from bulletnet.solver import contact_stage as contact
 
 K, C, M = 4.449e9, 62.0, 2.18e-3  # Table 5-6 spacecraft-inner node pair, an inner node [kg]
@@ -136,6 +136,51 @@ def test_node_slides_with_kinetic_friction():
     step_node_on_plane(model, setup, pos, vel, np.array([0.0, -g, 0.0]), dt, int(t_stop / dt))
     assert pos[0, 0] == pytest.approx(v0**2 / (2 * mu_k * g), rel=2e-3)
     assert abs(vel[0, 0]) < 1e-9
+
+
+def fall_onto_debris(debris, skin: float, steps: int = 600):
+    """Nodes of a 12 x 12 capture net scattered in a shell about the spinning ``debris``,
+    falling onto it at 2 m/s under a 5 m/s^2 pull to its centre (1e-3 s steps, the debris
+    contact stage with the exact law and friction; ``skin`` [m] widens the distance
+    queries, 0: no distance cache). The contact arrays at the end and how many node
+    queries were made."""
+    scene = bn.load_scenario("capture", {"net.nodes_per_side": 12, "contact.model": "exact"})
+    model = bn.build_model(scene)
+    a = contact.setup(scene, model, debris).arrays
+    a.params[1] = skin
+    a.flags[1] = False  # the debris only
+    a.com[:] = debris.center_of_mass
+    a.omega[0] = (0.3, -0.2, 0.1)  # [rad/s]
+    rng = np.random.default_rng(7)
+    inward = rng.normal(size=(model.node_count, 3))
+    inward /= -np.linalg.norm(inward, axis=1)[:, None]
+    pos = a.com - inward * rng.uniform(0.3, 1.2, (model.node_count, 1)) * a.bound[0]
+    vel, dv, dt = 2.0 * inward, 5.0 * 1e-3 * inward, 1e-3
+    queries = 0
+    for k in range(steps):
+        vel += dv
+        pos += dt * vel
+        before = a.clear_at.copy()
+        contact.contact_stage(pos, vel, dv, model.mass, model.radius, model.fixed, a, dt,
+                              k * dt)
+        queries += int(np.any(a.clear_at != before, axis=1).sum())
+    return pos, vel, a, queries
+
+
+@pytest.mark.parametrize("asset", ["apollo_csm", "apollo_csm_mesh"])
+def test_distance_cache_skips_only_queries_out_of_reach(asset):
+    # Reference: the debris contact stage without the cache (every node within the bounding
+    # sphere queried every step). Nodes falling onto the spinning CSM (primitives; its mesh):
+    # the cache must leave positions, velocities, predicted gaps, impulses and projections
+    # the same bit for bit, from fewer queries.
+    debris = load_debris(asset)
+    pos0, vel0, plain, asked = fall_onto_debris(debris, 0.0)
+    pos1, vel1, cached, fewer = fall_onto_debris(debris, 0.05)
+    assert plain.first_contact[0] > 0.0 and plain.projections[0] > 0  # they hit it
+    assert np.array_equal(pos0, pos1) and np.array_equal(vel0, vel1)
+    for name in ("debris_gap", "impulse", "node_impulse", "projections", "com", "quat"):
+        assert np.array_equal(getattr(plain, name), getattr(cached, name)), name
+    assert fewer < 0.5 * asked, (fewer, asked)
 
 
 def test_sphere_pair_rebound_conserves_momentum_and_restitution():

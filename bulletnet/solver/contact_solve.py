@@ -42,7 +42,7 @@ import numba as nb
 import numpy as np
 
 from ..kernels.contact import friction_impulse
-from ..kernels.geometry import debris_distance, quat_matrix
+from .debris_gap import debris_pose, start_gap, surface_speed
 
 CONTACT_COLUMNS = 8
 """Columns of a contact's law row: reduced mass [kg], stiffness [N/m], damping [N s/m], mu_s,
@@ -177,19 +177,6 @@ def add_debris_impulse(imp, r, d):
     imp[3] += r[1] * d[2] - r[2] * d[1]
     imp[4] += r[2] * d[0] - r[0] * d[2]
     imp[5] += r[0] * d[1] - r[1] * d[0]
-
-
-@nb.njit(cache=True, error_model="numpy", inline="always")
-def debris_pose(com, quat, com_body):
-    """The debris' rotation (3, 3) [-] and body-frame origin (3,) [m] from its centre of
-    mass ``com`` [m], orientation ``quat`` (1, 4) and centre of mass in its body frame."""
-    rot = np.empty((3, 3))
-    quat_matrix(quat[0], rot)
-    origin = np.empty(3)
-    for a in range(3):
-        origin[a] = com[a] - (rot[a, 0] * com_body[0] + rot[a, 1] * com_body[1]
-                              + rot[a, 2] * com_body[2])
-    return rot, origin
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -343,29 +330,17 @@ def _gather_debris(pos, vel, dv, mass, radius, fixed, contact, solve, dt, count)
     ``count``; returns the new count."""
     cls, kc, cc, mu_s, mu_k = (contact.node_class, contact.stiffness, contact.damping,
                                contact.mu_static, contact.mu_kinetic)
-    parts, com_body, bound, mesh = contact.parts, contact.com_body, contact.bound, contact.mesh
-    com, quat, vd, wd = contact.com, contact.quat, contact.velocity, contact.omega
+    com, vd, wd = contact.com, contact.velocity, contact.omega
     predicted, stats = contact.debris_gap, contact.projections
-    rot, origin = debris_pose(com, quat, com_body)
+    rot, origin = debris_pose(com, contact.quat, contact.com_body)
     w = wd[0]
-    spin = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-    surface_speed = math.sqrt(vd[0] * vd[0] + vd[1] * vd[1] + vd[2] * vd[2]) + spin * bound[0]
+    speed = surface_speed(contact)
     p0, r, nrm = np.empty(3), np.empty(3), np.empty(3)
     for i in range(pos.shape[0]):
         if fixed[i] or cls[i] < 0:
             continue
-        speed, push = 0.0, 0.0
-        for a in range(3):
-            p0[a] = pos[i, a] - dt * vel[i, a]
-            r[a] = p0[a] - com[a]
-            speed += vel[i, a] * vel[i, a]
-            push += dv[i, a] * dv[i, a]
-        reach = dt * (math.sqrt(speed) + math.sqrt(push) + surface_speed) + 1e-9
-        far = math.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]) - bound[0] - radius[i]
-        d = np.inf if far > reach else debris_distance(p0, origin, rot, parts, mesh, nrm,
-                                                        reach + radius[i])
-        s0 = d - radius[i]
-        if s0 > reach:
+        s0, d = start_gap(i, pos, vel, dv, radius, contact, rot, origin, speed, dt, p0, nrm)
+        if s0 == np.inf:
             _forget(predicted, solve.debris_offset, solve.debris_warm, i)
             continue
         lever, vs = solve.lever[count], solve.surface[count]

@@ -28,14 +28,7 @@ import numpy as np
 
 from ..kernels.bending import integrate_rotation
 from ..kernels.contact import friction_impulse, implicit_normal_step, normal_step
-from ..kernels.geometry import (
-    BOX,
-    FRUSTUM,
-    MESH,
-    PART_COLUMNS,
-    SPHERE,
-    debris_distance,
-)
+from ..kernels.geometry import BOX, FRUSTUM, MESH, PART_COLUMNS, SPHERE
 from ..model.materials import BODY_CLASSES, contact_table
 from ..model.mesh import MeshArrays, build, no_meshes
 from ..model.net import NetModel, NodeKind
@@ -45,11 +38,11 @@ from .contact_solve import (
     add_debris_impulse,
     carry_pairs,
     coupled_stage,
-    debris_pose,
     grown,
     keep_pairs,
     solve_arrays,
 )
+from .debris_gap import debris_pose, start_gap, surface_speed
 
 CLASS_OF_KIND = {NodeKind.CORNER_MASS: 1, NodeKind.CORNER: 2, NodeKind.EDGE: 3,
                  NodeKind.INNER: 4, NodeKind.TETHER: -1, NodeKind.CHASER: -1}
@@ -115,6 +108,11 @@ class ContactArrays(NamedTuple):
     """Whether debris contact and self-contact are on [-], shape (2,), bool."""
     debris_gap: np.ndarray
     """Gap to the debris each node's last step predicted [m] (+inf: none), shape (N,)."""
+    clear: np.ndarray
+    """Lower bound of each node's gap to the debris at its last distance query [m] (-inf:
+    none yet; :mod:`bulletnet.solver.debris_gap`), shape (N,)."""
+    clear_at: np.ndarray
+    """Where each node was at that query, in the debris' body frame [m], shape (N, 3)."""
     pair_gap: np.ndarray
     """Gap each listed pair's last step predicted [m] (+inf: none), shape (C,)."""
     projections: np.ndarray
@@ -211,7 +209,8 @@ def setup(s: Scenario, model: NetModel, debris=None, enabled: bool = True) -> Co
         pairs=np.zeros((capacity, 2), dtype=np.int64), pair_meta=np.zeros(3, dtype=np.int64),
         build_position=np.zeros((n, 3)), first_contact=np.full(2, -1.0),
         flags=np.array([has_debris, self_contact]),
-        debris_gap=np.full(n, np.inf), pair_gap=np.full(capacity, np.inf),
+        debris_gap=np.full(n, np.inf), clear=np.full(n, -np.inf), clear_at=np.zeros((n, 3)),
+        pair_gap=np.full(capacity, np.inf),
         projections=np.zeros(2),
         solve=(solve_arrays(s.contact.tolerance, s.contact.sweeps, n, capacity)
                if on and s.contact.solver == "coupled" else None),
@@ -241,13 +240,6 @@ def _cross(a, b, out):
 @nb.njit(cache=True, error_model="numpy")
 def _norm(a):
     return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
-
-
-@nb.njit(cache=True, error_model="numpy", inline="always")
-def _row_norm(a, i):
-    """:func:`_norm` of row i of ``a`` (N, 3), without making the row a view (whose
-    reference counting costs more than the norm)."""
-    return math.sqrt(a[i, 0] * a[i, 0] + a[i, 1] * a[i, 1] + a[i, 2] * a[i, 2])
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -293,30 +285,21 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
     velocity over the step. Impulses on the debris are added to contact.impulse."""
     cls, kc, cc, mu_s, mu_k = (contact.node_class, contact.stiffness, contact.damping,
                                contact.mu_static, contact.mu_kinetic)
-    params, parts, com_body, bound = contact.params, contact.parts, contact.com_body, contact.bound
-    mesh = contact.mesh
-    com, quat, vd, wd = contact.com, contact.quat, contact.velocity, contact.omega
+    params = contact.params
+    slip = params[0]
+    com, vd, wd = contact.com, contact.velocity, contact.omega
     imp, node_imp = contact.impulse, contact.node_impulse
     first, predicted, stats = contact.first_contact, contact.debris_gap, contact.projections
-    slip = params[0]
-    rot, origin = debris_pose(com, quat, com_body)
+    rot, origin = debris_pose(com, contact.quat, contact.com_body)
     w = wd[0]
-    surface_speed = _norm(vd) + _norm(w) * bound[0]
+    speed = surface_speed(contact)
     p0, n, r, vs, acc, tmp = (np.empty(3), np.empty(3), np.empty(3), np.empty(3),
                               np.empty(3), np.empty(3))
     for i in range(pos.shape[0]):
         if fixed[i] or cls[i] < 0:
             continue
-        for a in range(3):
-            p0[a] = pos[i, a] - dt * vel[i, a]
-            r[a] = p0[a] - com[a]
-        reach = dt * (_row_norm(vel, i) + _row_norm(dv, i) + surface_speed) + 1e-9
-        if _norm(r) - bound[0] - radius[i] > reach:
-            predicted[i] = np.inf
-            continue
-        d = debris_distance(p0, origin, rot, parts, mesh, n, reach + radius[i])
-        s0 = d - radius[i]
-        if s0 > reach:
+        s0, d = start_gap(i, pos, vel, dv, radius, contact, rot, origin, speed, dt, p0, n)
+        if s0 == np.inf:
             predicted[i] = np.inf
             continue
         lift = overlap_error(s0, predicted[i], stats)
