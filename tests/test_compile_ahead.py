@@ -5,7 +5,7 @@ numba's cache is what the run loads."""
 from __future__ import annotations
 
 import pytest
-from conftest import small_capture
+from conftest import small_capture, small_tow
 
 import bulletnet as bn
 from bulletnet.engines import make_engine
@@ -49,3 +49,33 @@ def test_a_free_net_has_no_groups():
     scene = bn.load_scenario("deployment")
     model = bn.build_model(scene)
     assert make_engine(scene, model).kernel_groups(bn.initial_state(scene, model)) == {}
+
+
+def test_the_tow_group_is_the_loop_the_burn_switches_to(tmp_path, monkeypatch):
+    # Reference: numba's record of the signatures each loop compiled for (as above): the
+    # run switches to symplectic Euler at the burn (thrust.integrator), and the group `tow`
+    # names that loop for the arguments' types it is called with; a scene without the switch
+    # has no such group.
+    from numba.core.caching import NullCache
+
+    from bulletnet.sim import loop as run_loop
+    from bulletnet.solver import integrators
+
+    loops, build = {}, integrators.advance.__wrapped__
+
+    def anew(on_grid, implicit):
+        if (on_grid, implicit) not in loops:
+            loops[on_grid, implicit] = build(on_grid, implicit)
+            loops[on_grid, implicit]._cache = NullCache()
+        return loops[on_grid, implicit]
+
+    monkeypatch.setattr(integrators, "advance", anew)
+    monkeypatch.setattr(run_loop, "compile_ahead", lambda *args: None)  # no second process
+    scene = small_tow(**{"thrust.integrator": "symplectic_euler", "thrust.dt": 8e-6})
+    model = bn.build_model(scene)
+    state = bn.initial_state(scene, model)
+    assert "tow" not in make_engine(small_tow(), model).kernel_groups(state)
+    groups = make_engine(scene, model).kernel_groups(state)
+    assert bn.run(scene, tmp_path / "run.h5").status == "completed"
+    [(dispatcher, args)] = groups["tow"]
+    assert dispatcher is loops[True, False] and signature(args) in dispatcher.overloads

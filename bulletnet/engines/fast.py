@@ -85,7 +85,8 @@ class FastEngine(Engine):
     def kernel_groups(self, state: NetState) -> dict[str, list[tuple]]:
         """The compiled kernels the loop of this engine calls, by group, each as (dispatcher,
         the arguments the loop passes it): ``step`` (the threads' step on this path), with
-        bending on the grid ``bending``, with contact ``contact`` (the contact stage). For
+        bending on the grid ``bending``, with contact ``contact`` (the contact stage), with a
+        tow on another integrator (``thrust.integrator``) ``tow`` (that integrator's loop). For
         compiling groups apart, on both cores (:mod:`bulletnet.sim.compile_ahead`); empty for a
         free net, whose first run compiles little."""
         if self.free:
@@ -105,6 +106,12 @@ class FastEngine(Engine):
                     [(axial_forces, (pos, vel, a.pairs, a.rest, a.rest_rate, a.k_a, a.c_a,
                                      a.bilateral, w.force, w.tension))])
         groups = {"step": step}
+        tow = self.scenario.thrust
+        if tow.enabled and tow.integrator and (tow.integrator == "implicit_euler") != self.implicit:
+            groups["tow"] = [(integrators.advance(self.grid is not None, not self.implicit), (
+                self.bending_every, 1, pos, vel, quat, omega, self.arrays, self.step_work,
+                self.gravity, self.external, self.dt, self.cg_tolerance, self.contact_arrays,
+                0.0, self.grid, self.views, self.breakage, self.peaks))]
         if self.grid is not None and self.bending:
             groups["bending"] = [(grid_kernels.bending, (self.grid, self.views,
                                                          self.work.torque))]

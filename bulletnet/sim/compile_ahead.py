@@ -11,6 +11,11 @@ or the second process fails, nothing changes but the time: each process compiles
 what a run would (the same kernels for the same argument types), so the results are the
 same.
 
+A scene whose tow goes on with another integrator (``thrust.integrator``: the removal's
+implicit capture, then its symplectic tow) needs that integrator's loop only at the burn,
+tens of seconds into the run; a second process compiles it meanwhile, on the other core, and
+the run loads it at the switch (or, if it is not ready, compiles it itself as before).
+
     python -m bulletnet.sim.compile_ahead SCENE.toml GROUP ...   # the second process
 """
 
@@ -47,32 +52,49 @@ def compile_group(calls: list[tuple]) -> None:
         dispatcher.compile(signature(args))
 
 
-def compile_ahead(scenario, engine, state) -> None:
-    """Compile the engine's kernel groups for ``state`` on two cores when numba's cache lacks
-    any group besides the step (see the module doc); otherwise do nothing (the run compiles
-    or loads as usual)."""
-    groups = engine.kernel_groups(state)
-    missing = [name for name, calls in groups.items() if name != "step"
-               and not all(is_cached(d, a) for d, a in calls)]
-    if not missing:
-        return
+def _helper(scenario, groups: list[str]) -> subprocess.Popen:
+    """A second process compiling the named groups of ``scenario`` (its TOML in a file the
+    process reads before it compiles; the file is removed when the process ends)."""
     from ..model.scenario import to_toml
 
-    with tempfile.TemporaryDirectory() as tmp:
-        scene = Path(tmp) / "scene.toml"
-        scene.write_text(to_toml(scenario), encoding="utf-8")
-        helper = subprocess.Popen([sys.executable, "-m", "bulletnet.sim.compile_ahead", str(scene),
-                                   *missing], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                  stderr=subprocess.DEVNULL)
+    with tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False,
+                                     encoding="utf-8") as f:
+        f.write(to_toml(scenario))
+    return subprocess.Popen([sys.executable, "-m", "bulletnet.sim.compile_ahead", f.name,
+                             *groups], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+
+
+def stop_helper(helper: subprocess.Popen | None) -> None:
+    """End ``helper`` if it still runs (the run is over: what it has not compiled is not
+    needed)."""
+    if helper is not None and helper.poll() is None:
+        helper.kill()
+        helper.wait()
+
+
+def compile_ahead(scenario, engine, state) -> subprocess.Popen | None:
+    """Compile the engine's kernel groups for ``state`` on two cores when numba's cache lacks
+    any group besides the step (see the module doc); otherwise do nothing (the run compiles
+    or loads as usual). The tow's loop (group ``tow``, a scene whose burn switches
+    integrator) is left compiling in a second process while the run goes on, to be loaded
+    at the switch: the process is returned, for :func:`stop_helper` at the run's end (None:
+    none)."""
+    groups = engine.kernel_groups(state)
+    missing = [name for name, calls in groups.items() if name not in ("step", "tow")
+               and not all(is_cached(d, a) for d, a in calls)]
+    if missing:
+        helper = _helper(scenario, missing)
         try:
             compile_group(groups["step"])
             helper.wait(timeout=HELPER_TIMEOUT_S)
         except subprocess.TimeoutExpired:
             pass  # this process compiles what is left, as the run goes
         finally:
-            if helper.poll() is None:  # timed out, or this process was interrupted
-                helper.kill()
-                helper.wait()
+            stop_helper(helper)  # timed out, or this process was interrupted
+    if "tow" in groups and not all(is_cached(d, a) for d, a in groups["tow"]):
+        return _helper(scenario, ["tow"])
+    return None
 
 
 def main(argv: list[str]) -> int:
@@ -82,7 +104,10 @@ def main(argv: list[str]) -> int:
     from ..model.builder import build_model, initial_state
     from ..model.scenario import load
 
-    scenario = load(argv[0])
+    try:
+        scenario = load(argv[0])
+    finally:
+        Path(argv[0]).unlink(missing_ok=True)
     model = build_model(scenario)
     state = initial_state(scenario, model)
     engine = make_engine(scenario, model)

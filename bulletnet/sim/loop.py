@@ -22,7 +22,7 @@ from ..model.builder import build_model, initial_state
 from ..model.scenario import Scenario, to_toml
 from ..model.state import NetState
 from ..recording.writer import Recorder
-from .compile_ahead import compile_ahead
+from .compile_ahead import compile_ahead, stop_helper
 from .observers import Breakage, Observer, Outcome, Profiling, Recording, Run
 from .profiling import Profile
 from .tow import ReelControl, ThrustControl, TowOutcome
@@ -175,7 +175,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
     model = preflight(scenario, out, force)
     state = initial_state(scenario, model)
     engine = make_engine(scenario, model)
-    compile_ahead(scenario, engine, state)  # a first run with contact: on both cores
+    helper = compile_ahead(scenario, engine, state)  # a first run with contact: both cores
     times = frame_times(scenario.scene.duration, scenario.simulation.record_rate)
     observers = _observers(scenario, model, engine, state, out, profile) + list(observers)
     view = Run(scenario, model, engine, state)
@@ -222,6 +222,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             for observer in sorted(observers, key=lambda o: o.finish_order):
                 observer.finish(view, status, attrs)
         engine.close()
+        stop_helper(helper)
     if error is not None:
         raise error
     recording = next((o for o in observers if isinstance(o, Recording)), None)
