@@ -7,7 +7,8 @@ replaced by the exact solution of :func:`~bulletnet.kernels.contact.normal_step`
 step's other forces, then friction acts on the slip).
 
 Collision work is only done where something can touch: a node is tested against the debris
-only when its step can reach the debris' bounding sphere, and node pairs come from a Verlet
+only when its step can reach the debris' bounding sphere and its cached distance, less its
+motion since, allows it (:mod:`bulletnet.solver.debris_gap`), and node pairs come from a Verlet
 list (pairs closer than their radii plus ``contact.skin``), rebuilt when a node has moved more
 than 0.4 skin since the last build.
 
