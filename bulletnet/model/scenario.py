@@ -155,7 +155,9 @@ class Contact:
     """Whether the net's node spheres also collide with each other (with contact on)."""
     skin: float = _f(0.05, "m", ">0")
     """Margin of the self-contact pair list [m]: pairs closer than their radii plus this
-    are tracked; the list is rebuilt when a node has moved 0.4 skin."""
+    are tracked; the list is rebuilt when a node has moved 0.4 skin. Also the margin of the
+    debris' distance cache: a node's query reaches this much beyond its step, and it is not
+    queried again until it may have moved that close (results do not depend on it)."""
     solver: str = _f("sequential", "-", "choice", CONTACT_SOLVERS)
     """How a step's contacts are solved: ``sequential`` solves each one once from its start
     gap with the others held (node-node, then node-debris), removing an overlap the last
