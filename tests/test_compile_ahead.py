@@ -4,6 +4,8 @@ numba's cache is what the run loads."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from conftest import small_capture, small_tow
 
@@ -79,3 +81,23 @@ def test_the_tow_group_is_the_loop_the_burn_switches_to(tmp_path, monkeypatch):
     assert bn.run(scene, tmp_path / "run.h5").status == "completed"
     [(dispatcher, args)] = groups["tow"]
     assert dispatcher is loops[True, False] and signature(args) in dispatcher.overloads
+
+
+def test_the_tow_loop_compiles_in_a_process_that_ends_with_the_run(monkeypatch):
+    # Reference: the definition (sim/compile_ahead.py): with the tow's loop not cached,
+    # compile_ahead returns the running second process instead of waiting for it, and
+    # stop_helper ends it; with everything cached there is none.
+    from bulletnet.sim import compile_ahead as ahead
+
+    scene = small_tow(**{"thrust.integrator": "symplectic_euler", "thrust.dt": 8e-6})
+    model = bn.build_model(scene)
+    state = bn.initial_state(scene, model)
+    engine = make_engine(scene, model)
+    [(tow_loop, _)] = engine.kernel_groups(state)["tow"]
+    monkeypatch.setattr(ahead, "is_cached", lambda dispatcher, args: True)
+    assert ahead.compile_ahead(scene, engine, state) is None
+    monkeypatch.setattr(ahead, "is_cached", lambda dispatcher, args: dispatcher is not tow_loop)
+    helper = ahead.compile_ahead(scene, engine, state)
+    assert helper is not None and helper.poll() is None  # still compiling: not waited for
+    ahead.stop_helper(helper)
+    assert helper.poll() is not None and not Path(helper.args[3]).exists()  # its scene file

@@ -71,6 +71,7 @@ def stop_helper(helper: subprocess.Popen | None) -> None:
     if helper is not None and helper.poll() is None:
         helper.kill()
         helper.wait()
+        Path(helper.args[3]).unlink(missing_ok=True)  # its scene, if it had not read it yet
 
 
 def compile_ahead(scenario, engine, state) -> subprocess.Popen | None:
