@@ -403,3 +403,47 @@ seed = 1
     with h5py.File(path, "a") as f:
         f.attrs["outcome"] = "captured"
     assert CAPTURE_MEASURES["outcome"](bn.open_recording(path)) == "captured"
+
+
+def test_tow_study_reads_the_tow_measures_and_reports_its_outcomes(tmp_path):
+    # Reference: each run's own recording (kept with record=True): the row's tow measures are
+    # its tow_* attributes, and the report counts the tow's outcome words. The scene is
+    # conftest.small_tow's (a burn at 0.2 s before the net holds the debris: slipped at
+    # once), with tow.stop_when_decided, so each run ends at 0.2 s.
+    from tests.conftest import small_tow
+
+    given = {"net.nodes_per_side": 6, "net.mesh_length": 1.0, "scene.duration": 0.5,
+             "debris.position": [0.0, 0.0, 3.0], "debris.velocity": [0.0, 0.0, -2.0],
+             "simulation.record_rate": 20.0, "tether.enabled": True, "tether.length": 3.0,
+             "tether.segments": 3, "tether.chaser_distance": 3.0, "tether.chaser_mass": 10.0,
+             "thrust.enabled": True, "thrust.trigger": "time", "thrust.trigger_time": 0.2,
+             "thrust.profile": "zv", "tow.enabled": True, "tow.safe_distance": 1.0,
+             "orbit.enabled": True, "tow.stop_when_decided": True}
+    assert small_tow(**{"thrust.force": 4.0, "tow.stop_when_decided": True}) == \
+        bn.load_scenario("capture", {**given, "thrust.force": 4.0})  # the same scene
+    lines = "\n".join(f'"{k}" = {json.dumps(v)}' for k, v in given.items())  # TOML values
+    text = f"""
+scene = "capture"
+design = "random"
+runs = 2
+seed = 3
+[set]
+{lines}
+[vary]
+"thrust.force" = {{dist = "uniform", low = 3.0, high = 6.0}}
+"""
+    study = load_study(write(tmp_path, text))
+    run_study(study, tmp_path / "out", serial=True, record=True)
+    rows = inputs_and_measures(tmp_path / "out")
+    for k, row in enumerate(rows):
+        assert row["status"] == "completed", row["message"]
+        attrs = bn.open_recording(tmp_path / "out" / "runs" / f"run_{k:05d}.h5").attrs
+        assert row["tow_outcome"] == attrs["tow_outcome"] == "slipped"
+        assert row["tow_start_s"] == attrs["tow_start_s"] == row["tow_decided_s"] == 0.2
+        for name in ("tow_peak_tension_N", "tow_mean_tension_N", "tow_snaps",
+                     "tow_snap_peak_N", "tow_least_distance_m",
+                     "tow_largest_debris_rate_deg_s"):
+            assert row[name] == attrs[name], name
+    report(tmp_path / "out")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["probabilities"]["tow_outcome"]["overall"]["slipped"]["count"] == 2

@@ -16,7 +16,7 @@ from bulletnet.model.net import NetModel, NodeKind
 from bulletnet.model.state import NetState
 from bulletnet.sim.observers import Run
 from bulletnet.sim.tow import ThrustControl
-from tests.conftest import small_scene
+from tests.conftest import small_scene, small_tow
 from tests.test_grid import assert_identical, final_states
 
 
@@ -498,7 +498,6 @@ def test_a_run_records_the_burn_and_the_tow(tmp_path):
     # its recorded impulse is the profile's, the tow is judged from the burn's first frame
     # (the debris is not yet in the net there: slipped), and `metrics` reports it all.
     from bulletnet.analysis.metrics import summary
-    from tests.conftest import small_tow
 
     result = bn.run(small_tow(), tmp_path / "tow.h5")
     attrs = bn.open_recording(result.path).attrs
@@ -523,6 +522,34 @@ def test_a_run_records_the_burn_and_the_tow(tmp_path):
     series = tow_series(rec)
     assert series["time"][0] == 0.2 and series["thrust"][0] > 0.0
     assert (tmp_path / "figs" / "tow.png") in plot_recordings(rec, None, tmp_path / "figs")
+
+
+def test_a_tow_decided_early_stops_the_run_there(tmp_path):
+    # Reference: the same run without the stop (small_tow slips at the burn's first frame,
+    # 0.2 s): with tow.stop_when_decided the run ends at that frame, `completed`, its frames
+    # the full run's first ones to the last digit and its outcome the full run's.
+    full = bn.open_recording(bn.run(small_tow(), tmp_path / "full.h5").path)
+    result = bn.run(small_tow(**{"tow.stop_when_decided": True}), tmp_path / "stop.h5")
+    stopped = bn.open_recording(result.path)
+    assert result.status == "completed" and result.state.time == pytest.approx(0.2)
+    n = len(stopped.time)
+    assert stopped.time[-1] == pytest.approx(0.2) and n < len(full.time)
+    assert np.array_equal(stopped.position, full.position[:n])
+    for key in ("tow_outcome", "tow_outcome_time_s", "tow_start_s"):
+        assert stopped.attrs[key] == full.attrs[key], key
+    assert stopped.attrs["tow_outcome"] == "slipped"
+
+
+def test_a_capture_that_fails_stops_a_tow_run_before_any_burn(tmp_path):
+    # A burn triggered by the capture never starts once the capture is decided otherwise
+    # (here `missed`: no contact by 0.1 s, the net 3 m from the debris at 2 m/s relative): with
+    # tow.stop_when_decided the run ends at that frame, the tow undecided and never started.
+    s = small_tow(**{"thrust.trigger": "captured", "outcome.enabled": True,
+                     "outcome.miss_time": 0.1, "tow.stop_when_decided": True})
+    result = bn.run(s, tmp_path / "missed.h5")
+    attrs = bn.open_recording(result.path).attrs
+    assert attrs["outcome"] == "missed" and result.state.time == pytest.approx(0.1)
+    assert attrs["tow_outcome"] == "undecided" and attrs["tow_start_s"] == -1.0
 
 
 def test_removal_scene_runs_in_orbit_with_its_shaped_burn(tmp_path):

@@ -448,6 +448,10 @@ class TowRules:
     slack_tension: float = _f(0.0, "N", ">=0")
     """The tether counts as slack at or below this tension [N] (a snap is the return from
     slack to taut)."""
+    stop_when_decided: bool = _f(False, "-")
+    """End the run (status ``completed``) at the frame that decides the tow ``slipped`` or
+    ``collided``, or that decides the capture otherwise than ``captured`` with
+    ``thrust.trigger = "captured"`` (no burn will start); ``towed`` is decided at the end."""
 
 
 @dataclass(frozen=True)

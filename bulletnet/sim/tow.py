@@ -124,11 +124,21 @@ class TowOutcome(Observer):
         self.monitor = TowMonitor(scenario.tow)
         self.geometry = geometry
         self.thrust = thrust
+        self.stop = scenario.tow.stop_when_decided
 
     def frame(self, run: Run) -> bool:
+        self._judge(run)
+        if not self.stop:
+            return False
+        capture = self.thrust.trigger.capture
+        no_burn = (self.thrust.profile is None and capture is not None and capture.decided
+                   and capture.outcome != "captured")
+        return no_burn or self.monitor.outcome in ("slipped", "collided")
+
+    def _judge(self, run: Run) -> None:
         p, state, engine = self.thrust.profile, run.state, run.engine
         if p is None or state.time < p.times[0]:
-            return False
+            return
         debris = state.debris
         tension = engine.thread_loads(state)[0][-1]  # the chaser's segment, the last thread
         enclosed = score(state.position, body_origin(debris, engine.debris), debris[QUAT],
@@ -136,7 +146,6 @@ class TowOutcome(Observer):
         self.monitor.update(state.time, float(tension),
                             float(np.linalg.norm(state.position[-1] - debris[COM])),
                             enclosed, float(np.linalg.norm(debris[OMEGA])))
-        return False
 
     def finish(self, run: Run, status: str, attrs: dict) -> None:
         self.monitor.finish(status == "completed")

@@ -117,6 +117,25 @@ def any_broken(rec: Recording) -> bool | None:
     return None if threads is None else threads + cables > 0
 
 
+def _tow_attribute(name: str, unset: float | None = None):
+    """A measure reading the tow's root attribute ``name`` (docs/recordings.md); None where
+    the recording has none, or where it holds ``unset`` (the tow never started)."""
+    def measure(rec: Recording):
+        value = rec.attrs.get(name)
+        if value is None or (unset is not None and value == unset):
+            return None
+        return value.item() if hasattr(value, "item") else value
+    measure.__doc__ = f"The recording's ``{name}`` attribute (None without one)."
+    return measure
+
+
+def tow_outcome(rec: Recording) -> str | None:
+    """The tow's outcome (root attribute ``tow_outcome``: towed, slipped, collided or
+    undecided); None where the recording has none."""
+    value = rec.attrs.get("tow_outcome")
+    return None if value is None else str(value)
+
+
 Measures = dict[str, Callable[[Recording], float | int | str | bool | None]]
 """Summary measures of a recording: column name (with its unit) -> function of the recording;
 None where a run never reaches it."""
@@ -162,11 +181,31 @@ debris at the end), the outcome (None until the recording keeps one) and
 :data:`STRENGTH_MEASURES`."""
 
 
+TOW_MEASURES: Measures = {
+    "tow_outcome": tow_outcome,
+    "tow_start_s": _tow_attribute("tow_start_s", -1.0),
+    "tow_decided_s": _tow_attribute("tow_outcome_time_s", -1.0),
+    "tow_peak_tension_N": _tow_attribute("tow_peak_tension_N"),
+    "tow_mean_tension_N": _tow_attribute("tow_mean_tension_N"),
+    "tow_snaps": _tow_attribute("tow_snaps"),
+    "tow_snap_peak_N": _tow_attribute("tow_snap_peak_N"),
+    "tow_least_distance_m": _tow_attribute("tow_least_distance_m", -1.0),
+    "tow_largest_debris_rate_deg_s": _tow_attribute("tow_largest_debris_rate_deg_s"),
+}
+"""Summary measures of a tow (a scene with ``[tow]`` judged, docs/tow.md): its outcome, the
+burn's start [s] and when the outcome was decided [s] (None: never started), the tether's
+peak and mean tension at the chaser [N], the snaps [-] and the largest snap's peak [N], the
+least chaser-to-debris distance [m] (None: never started) and the debris' largest angular
+speed [deg/s], all from the recording's ``tow_*`` attributes."""
+
+
 def summary_measures(scenario) -> Measures:
     """The measures that fit a scene: :data:`CAPTURE_MEASURES` with debris and contact, else
-    :data:`SUMMARY_MEASURES`; with ``strength.breakage`` on, :data:`BREAKAGE_MEASURES`
-    too."""
+    :data:`SUMMARY_MEASURES`; with ``[tow]`` judged, :data:`TOW_MEASURES` too; with
+    ``strength.breakage`` on, :data:`BREAKAGE_MEASURES` too."""
     measures = CAPTURE_MEASURES if scenario.debris.asset and scenario.contact.enabled \
         else SUMMARY_MEASURES
+    if scenario.tow.enabled:
+        measures = {**measures, **TOW_MEASURES}
     return {**measures, **BREAKAGE_MEASURES} if scenario.strength.breakage else measures
 

@@ -5,9 +5,9 @@ runs anything, so it also reads a study still running or stopped half-way).
 
 - ``status``: runs per status; ``wall_s``: their mean and total [s];
 - ``measures``: count, mean, std, min and max of each numeric measure over completed runs;
-- ``probabilities``: for the ``outcome`` column (where the recordings keep one), each
-  true/false measure (``overloaded``: an element reached its breaking tension) and, for each
-  measure some completed run never reached (``first_contact_s``, ``leave_s``,
+- ``probabilities``: for the outcome columns (:data:`OUTCOMES`, where the recordings keep
+  them), each true/false measure (``overloaded``: an element reached its breaking tension)
+  and, for each measure some completed run never reached (``first_contact_s``, ``leave_s``,
   ``deployed_90pct_s``: the event "MEASURE reached", True or False), the probability of each
   value with its Wilson score interval (:func:`wilson`), overall and binned by each input
   (quantile bins; one bin per value of a ``choice`` input);
@@ -33,6 +33,10 @@ import numpy as np
 from ..common.errors import ScenarioError
 from .study import latest, read_table, salib
 from .sweep import plot_sweep
+
+OUTCOMES = ("outcome", "tow_outcome")
+"""The measure columns that hold an outcome (one of several words: the capture's and the
+tow's): the report gives the probability of each word."""
 
 
 def wilson(successes: int, n: int, conf: float = 0.95) -> tuple[float, float, float]:
@@ -96,18 +100,19 @@ def probabilities(doc: dict, rows: list[dict], conf: float = 0.95, bins: int = 4
     module doc); {} if the study has neither."""
     done = [r for r in rows if r["status"] == "completed"]
     columns = {}  # name -> (runs, the value of a run)
-    if any(r.get("outcome") is not None for r in done):
-        columns["outcome"] = ([r for r in done if r.get("outcome") is not None],
-                              lambda r: r["outcome"])
+    for name in OUTCOMES:
+        if any(r.get(name) is not None for r in done):
+            columns[name] = ([r for r in done if r.get(name) is not None],
+                             lambda r, name=name: r[name])
     for m in doc["measures"]:
         if done and all(isinstance(r.get(m), bool) for r in done):
             columns[m] = (done, lambda r, m=m: r[m])
-        elif m != "outcome" and any(r.get(m) is None for r in done):
+        elif m not in OUTCOMES and any(r.get(m) is None for r in done):
             columns[f"{m} reached"] = (done, lambda r, m=m: r[m] is not None)
     result = {}
     for name, (subset, value) in columns.items():
         values = [value(r) for r in subset]
-        categories = [True, False] if name != "outcome" else sorted(set(values), key=str)
+        categories = sorted(set(values), key=str) if name in OUTCOMES else [True, False]
         by_input = {}
         for key, column in doc["columns"].items():
             index, labels = _bins([r[column] for r in subset], bins,
@@ -254,7 +259,7 @@ def plot_probabilities(probs: dict, out: Path) -> Path:
                              figsize=(3.0 * (1 + len(inputs)), 2.8 * len(probs)))
     for row, (name, p) in zip(axes, probs.items(), strict=True):
         # an event's probability of False is 1 - that of True: plot True only
-        values = ["True"] if name != "outcome" else list(p["overall"])
+        values = list(p["overall"]) if name in OUTCOMES else ["True"]
         _bars(row[0], [p["overall"][v] for v in values], values)
         row[0].set_title(f"{name}: overall", fontsize=9)
         row[0].set_ylabel("probability [-]")
