@@ -49,7 +49,8 @@ def assert_identical(a: bn.NetState, b: bn.NetState) -> None:
 @pytest.mark.parametrize("ns", [2, 7, 10])
 @pytest.mark.parametrize("bending", [False, True])
 @pytest.mark.parametrize(("integrator", "dt", "duration"),
-                         [("symplectic_euler", 1e-6, 0.35), ("implicit_euler", 3e-5, 0.5)])
+                         [("symplectic_euler", 1e-6, 0.35), ("implicit_euler", 3e-5, 0.5),
+                          ("exponential_euler", 5e-6, 0.35)])
 def test_grid_equals_pairs(ns, bending, integrator, dt, duration):
     states = final_states(lambda kernels: small_scene(**{
         "net.nodes_per_side": ns, "bending.enabled": bending, "simulation.kernels": kernels,
@@ -77,7 +78,8 @@ def test_grid_applies_to_nets_only():
 
 
 @pytest.mark.parametrize(("integrator", "dt"), [("symplectic_euler", 1e-6),
-                                                ("implicit_euler", 3e-5)])
+                                                ("implicit_euler", 3e-5),
+                                                ("exponential_euler", 5e-6)])
 @pytest.mark.parametrize("bending", [False, True])
 @pytest.mark.parametrize("attach", ["center", "bridle"])
 def test_grid_agrees_with_pairs_with_closing_and_tether(integrator, dt, bending, attach):

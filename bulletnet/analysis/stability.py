@@ -19,6 +19,12 @@ it, it is a lower bound of the net's limit (exact when C is proportional to K, a
 paper's axial dampers ``c_a = 2 xi_a k_a / omega_ref``). Linearly implicit Euler is A-stable on
 the linearised threads: it has no step limit.
 
+Exponential Euler (:mod:`bulletnet.solver.exponential_damping`) is symplectic Euler with the
+dampers' coefficients set for the step so that each relaxes its thread's rate without
+overshoot: on one mode the damper's factor a = 1 - h gamma becomes a in [0, 1], and the
+conditions ``|trace| < 1 + det`` give ``h^2 omega^2 < 2 (1 + a)``: at least
+``h < sqrt(2) / omega_max`` (the relaxed limit), whatever the damping.
+
 Bending springs are explicit in symplectic Euler (impulses every n steps, n >= 1 from
 :func:`bulletnet.engines.base.bending_interval`), so with bending it has a second limit on
 n dt, from the nodes' rotation on the bending and transverse springs: the same formula with
@@ -74,20 +80,34 @@ class Limits:
         """The explicit limit of the bending impulses' interval n dt [s] (inf without bending)."""
         return _explicit_step(self.bending_gamma, self.bending_omega)
 
+    @property
+    def relaxed_limit(self) -> float:
+        """sqrt(2) / omega_max [s]: exponential Euler's limit on the threads, whose dampers
+        relax exactly (:mod:`bulletnet.solver.exponential_damping`): the springs' explicit
+        limit with a damper that may take out a mode's whole rate in a step."""
+        return math.sqrt(2.0) / self.omega_max if self.omega_max > 0 else math.inf
+
     def for_integrator(self, integrator: str) -> float:
         """The step limit [s] of ``integrator``: the explicit one (and the bending one, if any)
-        for symplectic Euler; none (inf) for implicit Euler."""
+        for symplectic Euler, the relaxed one (and the bending one) for exponential Euler;
+        none (inf) for implicit Euler."""
         if integrator == "symplectic_euler":
             return min(self.explicit_limit, self.bending_limit)
+        if integrator == "exponential_euler":
+            return min(self.relaxed_limit, self.bending_limit)
         return math.inf
 
     def describe(self, integrator: str) -> str:
         """One phrase naming ``integrator``'s analytical limit and where it comes from."""
         bending = (f", bending impulses {self.bending_limit:.3g} s"
                    if math.isfinite(self.bending_limit) else "")
-        if integrator != "symplectic_euler":
+        if integrator == "implicit_euler":
             return (f"{integrator} is A-stable on the threads (stiffness 2/omega_max = "
                     f"{self.stiffness_limit:.3g} s) and on the rotations")
+        if integrator == "exponential_euler":
+            return (f"the analytical limit of {integrator} on this net is "
+                    f"{self.for_integrator(integrator):.3g} s (stiffness sqrt(2)/omega_max = "
+                    f"{self.relaxed_limit:.3g} s, the dampers relaxed exactly{bending})")
         return (f"the analytical limit of {integrator} on this net is "
                 f"{self.for_integrator(integrator):.3g} s (damping 2/gamma_max = "
                 f"{self.damping_limit:.3g} s, stiffness 2/omega_max = "

@@ -17,10 +17,11 @@ from ..kernels.peaks import reset as reset_peaks
 from ..kernels.reel import ReelArrays, reel_arrays
 from ..model.builder import scene_debris
 from ..model.net import NetModel
-from ..model.scenario import Scenario
+from ..model.scenario import EXPONENTIAL, Scenario
 from ..model.state import NetState
 from ..solver import contact_stage as contact
 from ..solver import integrators
+from ..solver.exponential_damping import damping_ratio
 
 
 def rotational_rates(model: NetModel) -> tuple[np.ndarray, np.ndarray]:
@@ -33,7 +34,7 @@ def rotational_rates(model: NetModel) -> tuple[np.ndarray, np.ndarray]:
     return np.where(free, c_sum / model.inertia, 0.0), np.where(free, k_sum / model.inertia, 0.0)
 
 
-BENDING_MARGINS = {"symplectic_euler": 0.3, "implicit_euler": 3.5}
+BENDING_MARGINS = {"symplectic_euler": 0.3, "implicit_euler": 3.5, EXPONENTIAL: 0.3}
 """Bending interval times the fastest rotational rate, per integrator [-]. Measured on the 3 s
 deployment: with symplectic Euler at 1e-6 s (n = 7) the bending impulses add less error than
 the step's own truncation (tests/test_bending.py). Implicit Euler's rotations are implicit and
@@ -150,6 +151,11 @@ class Engine(ABC):
         self.span = (0.0, 0.0)
         """Start and end [s] of the steps the engine takes next, until the next call of the
         step hooks."""
+        self.damping_factor = np.ones(model.thread_count)
+        """Each thread's damping over the model's, c_eff / c [-], shape (P,): 1 but on
+        ``exponential_euler`` (:mod:`bulletnet.solver.exponential_damping`)."""
+        if self.integrator == EXPONENTIAL:
+            self._set_damping()
 
     def between_steps(self, start: float, end: float) -> None:
         """Call the :attr:`step_hooks` before the steps from ``start`` to ``end`` [s] (engines
@@ -257,9 +263,29 @@ class Engine(ABC):
         sim = dataclasses.replace(sim, integrator=integrator or sim.integrator,
                                   dt=dt or sim.dt)
         self.scenario = dataclasses.replace(self.scenario, simulation=sim)
+        if self.integrator == EXPONENTIAL or self.damping_factor.min() < 1.0:
+            self._set_damping()
         if self.bending and not self.scenario.bending.every:
             self.bending_every = bending_interval(self.model, self.dt,
                                                   BENDING_MARGINS[self.integrator])
+
+    def _set_damping(self) -> None:
+        """The threads' damping for the integrator and step in force: exponential Euler's
+        c_eff (:func:`~bulletnet.solver.exponential_damping.damping_ratio`) or the model's."""
+        a = self.arrays
+        c = a.c_a / self.damping_factor  # the model's (a failed thread's stays 0)
+        cables = None if a.cables is None else a.cables.nodes
+        factor = (damping_ratio(c, a.pairs, a.mass, a.fixed, self.dt, cables)
+                  if self.integrator == EXPONENTIAL else np.ones_like(c))
+        self._scale_damping(factor / self.damping_factor)
+        self.damping_factor = factor
+
+    def _scale_damping(self, factor: np.ndarray) -> None:
+        """Multiply each thread's damping by ``factor`` [-], shape (P,), where the kernels
+        read it."""
+        if self.arrays.c_a is self.model.axial_damping:  # the engine's own copy, once
+            self.arrays = self.arrays._replace(c_a=self.arrays.c_a.copy())
+        self.arrays.c_a[:] *= factor
 
     def steps_for(self, interval: float) -> int:
         """Whole number of steps covering ``interval`` [s] with steps no longer than :attr:`dt`."""

@@ -35,6 +35,8 @@ class FastEngine(Engine):
         self.grid = (grid_kernels.build(model, self.arrays.cables, self.arrays.orbit,
                                         self.arrays.rest_rate) if use_grid else None)
         """The net's grid threads and structure-of-arrays state (None: the pair-list path)."""
+        if use_grid:  # (built from the model: exponential Euler's dampers set for the step)
+            grid_kernels.scale_damping(self.grid, model.pairs, self.damping_factor)
         self.views = grid_kernels.views(self.grid) if use_grid else None
         """(N, 3) views of the grid's rows (None on the pair-list path)."""
         self.step_work = self.work._replace(dv=self.views.dv) if use_grid else self.work
@@ -44,6 +46,11 @@ class FastEngine(Engine):
             self.peaks = peak_arrays(model.thread_count, model.cable_count,
                                      self.grid.th.shape[1])
             self._peak_columns = grid_kernels.peak_columns(self.grid, model.pairs)
+
+    def _scale_damping(self, factor: np.ndarray) -> None:
+        super()._scale_damping(factor)
+        if getattr(self, "grid", None) is not None:  # (None while the base class sets up)
+            grid_kernels.scale_damping(self.grid, self.model.pairs, factor)
 
     @property
     def kernels(self) -> str:

@@ -24,8 +24,11 @@ SCENARIO_DIR = data_dir("scenarios")
 """Folder of the named scenes shipped with the project (``bulletnet run deployment``)."""
 
 ENGINES = ("fast", "bullet", "reference")
-INTEGRATORS = ("symplectic_euler", "implicit_euler")
-DEFAULT_DT = {"symplectic_euler": 1e-6, "implicit_euler": 1e-5}
+EXPONENTIAL = "exponential_euler"
+"""Symplectic Euler whose thread dampers relax exactly over each step
+(:mod:`bulletnet.solver.exponential_damping`)."""
+INTEGRATORS = ("symplectic_euler", "implicit_euler", EXPONENTIAL)
+DEFAULT_DT = {"symplectic_euler": 1e-6, "implicit_euler": 1e-5, EXPONENTIAL: 5e-6}
 """Default step of the fixed-step integrators [s] (see README: accuracy against the reference)."""
 
 
@@ -702,6 +705,10 @@ def _check_reel(s: Scenario) -> None:
     if r.speed == 0 and r.tension_limit == 0:
         raise ScenarioError(f"{s.source}: reel.speed: a reel without a speed [m/s] or a "
                             "reel.tension_limit [N] does nothing; give one")
+    if EXPONENTIAL in (s.simulation.integrator, s.thrust.integrator if s.thrust.enabled else ""):
+        raise ScenarioError(f"{s.source}: reel.enabled: the reel sets the tether's damping "
+                            f"each step, which {EXPONENTIAL} sets for its step; use "
+                            "symplectic_euler or implicit_euler with a reel")
     if r.min_length > length:
         raise ScenarioError(f"{s.source}: reel.min_length: expected at most tether.length "
                             f"({length:g} m), got {r.min_length:g} m")

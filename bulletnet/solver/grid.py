@@ -736,6 +736,17 @@ def track_peaks(grid, peaks):
     track_cables(grid.cables, peaks)
 
 
+def scale_damping(grid: Grid, pairs: np.ndarray, factor: np.ndarray) -> None:
+    """Multiply each thread's axial damping by ``factor`` [-], shape (P,) in the order of
+    ``pairs`` (P, 2) (the pair list's; the grid's rows and its other threads)."""
+    inner = pairs.shape[0] - grid.o_pairs.shape[0]
+    i, j = pairs[:inner, 0], pairs[:inner, 1]
+    along = j == i + 1
+    grid.h_c[i[along]] *= factor[:inner][along]
+    grid.v_c[i[~along]] *= factor[:inner][~along]
+    grid.o_c[:] *= factor[inner:]
+
+
 def peak_columns(grid: Grid, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Where the grid keeps each grid thread's running maximum in the peaks' rows: (row,
     column) of the first 2 Ns (Ns - 1) threads of ``pairs`` (P, 2), each shape (2 Ns (Ns -

@@ -9,6 +9,10 @@ same semi-implicit update), so both engines run the same method.
 
 - ``symplectic_euler``: dv = dt F(x, v) / m. Explicit, first order; stable only while
   dt < ~2 m / c for the thread dampers (a few microseconds for the paper's nets).
+- ``exponential_euler``: symplectic Euler with each thread's damper relaxing its rate
+  exactly over the step (its two ends' masses shared among the threads that meet there):
+  the dampers no longer limit the step, the springs do (about sqrt(2) / omega_max;
+  :mod:`bulletnet.solver.exponential_damping`).
 - ``implicit_euler``: linearly implicit (one Newton step of) backward Euler on the axial
   threads, (M + dt C + dt^2 K) dv = dt F - dt^2 K v, solved by block-Jacobi preconditioned
   conjugate gradients (:func:`bulletnet.solver.pcg.solve`, shared with the grid's stencils),
@@ -56,7 +60,10 @@ from .contact_stage import contact_stage, ensure_pairs
 
 SYMPLECTIC_EULER = 0
 IMPLICIT_EULER = 1
-INTEGRATOR_IDS = {"symplectic_euler": SYMPLECTIC_EULER, "implicit_euler": IMPLICIT_EULER}
+INTEGRATOR_IDS = {"symplectic_euler": SYMPLECTIC_EULER, "implicit_euler": IMPLICIT_EULER,
+                  "exponential_euler": SYMPLECTIC_EULER}
+"""The kernels of each integrator: exponential Euler is symplectic Euler's step with the
+dampers' coefficients set for the step (:mod:`bulletnet.solver.exponential_damping`)."""
 
 
 def rotational_bounds(model: NetModel) -> tuple[np.ndarray, np.ndarray]:
