@@ -11,7 +11,7 @@ import pytest
 import bulletnet as bn
 from bulletnet.common.errors import BulletnetError
 from bulletnet.engines import make_engine
-from bulletnet.solver.exponential_damping import damping_ratio
+from bulletnet.solver.exponential_damping import damping_ratio, node_shares
 from tests.conftest import small_scene, small_tow
 from tests.test_tow import point_masses, run_model, scene
 
@@ -52,13 +52,36 @@ def test_damping_ratio_shares_each_node_among_its_dampers():
     c, mass, h = np.array([2.0, 3.0, 0.0]), np.array([1.0, 2.0, 4.0, 8.0]), 0.1
     fixed = np.array([True, False, False, False])
     x = np.array([2.0 * h * (0.0 + 2 / 2.0), 3.0 * h * (2 / 2.0 + 1 / 4.0)])
-    np.testing.assert_allclose(damping_ratio(c, pairs, mass, fixed, h),
+    share = node_shares(c, pairs, mass, fixed)
+    np.testing.assert_allclose(damping_ratio(c, pairs, share, h),
                                [*(-np.expm1(-x) / x), 1.0], rtol=1e-15)
-    assert damping_ratio(c, pairs, mass, fixed, 1e-12)[:2] == pytest.approx(1.0, rel=1e-9)
+    assert damping_ratio(c, pairs, share, 1e-12)[:2] == pytest.approx(1.0, rel=1e-9)
     # a cable through node 2 (twice) takes two more shares there
     x[1] = 3.0 * h * (2 / 2.0 + 3 / 4.0)
-    np.testing.assert_allclose(damping_ratio(c, pairs, mass, fixed, h, np.array([2, 2]))[1],
-                               -np.expm1(-x[1]) / x[1], rtol=1e-15)
+    share = node_shares(c, pairs, mass, fixed, np.array([2, 2]))
+    np.testing.assert_allclose(damping_ratio(c, pairs, share, h)[1], -np.expm1(-x[1]) / x[1],
+                               rtol=1e-15)
+
+
+def test_a_cable_damper_relaxes_exactly_over_the_step():
+    # Reference: the lone damper's closed form (above) on a straight cable of two vertices
+    # (its length rate u = e . (v_1 - v_0), g = -e, +e), next to no stiffness: with
+    # the vertices' shares d / m the kernel's damper takes the impulse that turns u into
+    # u exp(-x) in one step, x = c h (1 / m_0 + 1 / m_1) = 10 (symplectic Euler's: 1 - x).
+    from bulletnet.kernels.cable import cable_arrays, cable_forces
+
+    mass, h = np.array([1.0, 3.0]), 1e-2  # c = 750 N s/m: k = 1e-9 N/m, c / k = 7.5e11 s
+    cables = cable_arrays(np.array([0, 1]), np.array([0, 2]), np.array([1.0]),
+                          np.array([1e-9]), np.array([7.5e11]), np.zeros(1),
+                          np.full(1, np.inf), np.zeros(1))
+    pos = np.array([[0.0, 0, 0], [1.001, 0, 0]])
+    vel = np.array([[-0.75, 0, 0], [0.25, 0, 0]])
+    for share, expected in ((1.0 / mass, math.exp(-10.0)), (np.zeros(2), 1.0 - 10.0)):
+        cables.share[:] = share
+        force = np.zeros((2, 3))
+        cable_forces(pos, vel, cables, force, False, h)
+        after = vel + h * force / mass[:, None]
+        assert after[1, 0] - after[0, 0] == pytest.approx(expected, rel=1e-9)
 
 
 def test_exponential_euler_converges_to_the_symplectic_euler_reference():
@@ -92,7 +115,8 @@ def test_the_tow_switches_to_exponential_euler_and_back():
     engine = make_engine(s, model)
     c = engine.arrays.c_a.copy()
     engine.switch_integrator("exponential_euler", 1e-4)
-    expected = c * damping_ratio(c, model.pairs, model.mass, model.fixed, 1e-4)
+    expected = c * damping_ratio(c, model.pairs,
+                                 node_shares(c, model.pairs, model.mass, model.fixed), 1e-4)
     np.testing.assert_allclose(engine.arrays.c_a, expected, rtol=1e-15)
     assert (engine.arrays.c_a < c).any() and model.axial_damping is not engine.arrays.c_a
     engine.switch_integrator("implicit_euler", 1e-4)

@@ -21,7 +21,7 @@ from ..model.scenario import EXPONENTIAL, Scenario
 from ..model.state import NetState
 from ..solver import contact_stage as contact
 from ..solver import integrators
-from ..solver.exponential_damping import damping_ratio
+from ..solver.exponential_damping import damping_ratio, node_shares
 
 
 def rotational_rates(model: NetModel) -> tuple[np.ndarray, np.ndarray]:
@@ -275,10 +275,13 @@ class Engine(ABC):
         a = self.arrays
         c = a.c_a / self.damping_factor  # the model's (a failed thread's stays 0)
         cables = None if a.cables is None else a.cables.nodes
-        factor = (damping_ratio(c, a.pairs, a.mass, a.fixed, self.dt, cables)
-                  if self.integrator == EXPONENTIAL else np.ones_like(c))
+        share = (node_shares(c, a.pairs, a.mass, a.fixed, cables)
+                 if self.integrator == EXPONENTIAL else np.zeros_like(a.mass))
+        factor = damping_ratio(c, a.pairs, share, self.dt)
         self._scale_damping(factor / self.damping_factor)
         self.damping_factor = factor
+        if cables is not None:  # the cables' dampers relax with the step's own g
+            a.cables.share[:] = share[cables]
 
     def _scale_damping(self, factor: np.ndarray) -> None:
         """Multiply each thread's damping by ``factor`` [-], shape (P,), where the kernels

@@ -83,6 +83,10 @@ class CableArrays(NamedTuple):
     along: np.ndarray
     """Implicit rank-one coefficient dt c + dt^2 k [kg] of each cable, shape (C,); 0 when
     slack."""
+    share: np.ndarray
+    """Each vertex's node's share d / m [1/kg] of its dampers' relaxation, shape (V,)
+    (exponential Euler, :mod:`bulletnet.solver.exponential_damping`); 0: the damper is
+    symplectic Euler's."""
 
 
 def cable_arrays(nodes: np.ndarray, start: np.ndarray, rest: np.ndarray, rigidity: np.ndarray,
@@ -98,7 +102,7 @@ def cable_arrays(nodes: np.ndarray, start: np.ndarray, rest: np.ndarray, rigidit
         min_rest=min_rest.astype(float), start_time=np.full(1, np.inf),
         rest=rest.astype(float).copy(), tension=np.zeros(c), length=np.zeros(c),
         work=np.zeros(c), rest_rate=np.zeros(c), damper=np.zeros(c), grad=np.zeros((v, 3)),
-        axis=np.zeros((v, 3)), across=np.zeros(v), along=np.zeros(c))
+        axis=np.zeros((v, 3)), across=np.zeros(v), along=np.zeros(c), share=np.zeros(v))
 
 
 def cable_energy(length: np.ndarray, rest: np.ndarray, rigidity: np.ndarray) -> np.ndarray:
@@ -134,7 +138,7 @@ def cable_forces(pos, vel, cables, force, linearize, dt):
     nodes, start, grad, axis = cables.nodes, cables.start, cables.grad, cables.axis
     for c in range(start.shape[0] - 1):
         first, last = start[c], start[c + 1] - 1
-        length = rate = 0.0
+        length = rate = split = 0.0
         for v in range(first, last):
             dx, dy, dz = _span(pos, nodes, v)
             span = np.sqrt(dx * dx + dy * dy + dz * dz)
@@ -145,8 +149,12 @@ def cable_forces(pos, vel, cables, force, linearize, dt):
                 g = (axis[v - 1, a] if v > first else 0.0) - (axis[v, a] if v < last else 0.0)
                 grad[v, a] = g
                 rate += g * vel[nodes[v], a]
+                split += g * g * cables.share[v]
         k = cables.rigidity[c] / cables.rest[c]
         damping = cables.damping_time[c] * k
+        relax = damping * dt * split  # exponential Euler: the damper relaxed over the step
+        if relax > 0.0:
+            damping *= -np.expm1(-relax) / relax
         strain_rate = rate - cables.rest_rate[c]
         tension = kelvin_voigt(length, strain_rate, cables.rest[c], k, damping, False)
         cables.tension[c], cables.length[c] = tension, length

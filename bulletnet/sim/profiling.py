@@ -91,10 +91,10 @@ def instrument(profile: Profile, engine, timed=()) -> None:
 
 @nb.njit(cache=True, error_model="numpy")
 def _force_loop(steps, every, pos, vel, quat, omega, model, work, gravity, external, grid,
-                views):
-    """The force kernels of ``steps`` steps on a fixed state, bending on its schedule
-    (``quat`` None: no bending): the grid's (``grid`` not None; pos and vel its views) or the
-    pair list's."""
+                views, dt):
+    """The force kernels of ``steps`` steps of ``dt`` [s] on a fixed state, bending on its
+    schedule (``quat`` None: no bending): the grid's (``grid`` not None; pos and vel its
+    views) or the pair list's."""
     for _ in range(steps):
         weight = 0.0
         if quat is not None:
@@ -103,7 +103,7 @@ def _force_loop(steps, every, pos, vel, quat, omega, model, work, gravity, exter
             if quat is not None:
                 if weight > 0.0:
                     grid_kernels.bending(grid, views, work.torque)
-            grid_kernels.thread_forces(grid, views)
+            grid_kernels.thread_forces(grid, views, dt)
         else:
             external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
                             False)
@@ -145,7 +145,7 @@ def step_split(engine, state: NetState) -> dict | None:
 
     def forces(steps):
         _force_loop(steps, engine.bending_every, pos, vel, quat, omega, engine.arrays, work,
-                    engine.gravity, engine.external, grid, views)
+                    engine.gravity, engine.external, grid, views, engine.dt)
 
     flags = engine.contact.arrays.flags
     saved = flags.copy()

@@ -29,10 +29,12 @@ on the pair list and the grid). Properties:
   what it costs is measured in docs/tow.md ("The tow at a large step").
 
 The coefficients are set for a step; the engine sets them when it starts on the integrator
-(:meth:`bulletnet.engines.base.Engine.switch_integrator`). The closing cables' dampers and
-the bending springs' stay explicit (a cable takes a share of each node it runs through); on
-the removal's cinched cables 2 / gamma of a cable's damper is 8e-5 s or more (measured from
-the recorded shapes, 10 to 40 s).
+(:meth:`bulletnet.engines.base.Engine.switch_integrator`). A closing cable's damper, on the
+rate of its length L' = sum_v g_v . v_v (g_v = dL/dx_v), relaxes the same way, with
+1 / mu = sum_v |g_v|^2 d_v / m_v from the step's own g
+(:func:`bulletnet.kernels.cable.cable_forces`, from the vertices' shares
+``CableArrays.share``; a node that a cable passes twice counted per pass). The bending
+springs' dampers stay explicit (their own limit, :mod:`bulletnet.analysis.stability`).
 """
 
 from __future__ import annotations
@@ -40,19 +42,24 @@ from __future__ import annotations
 import numpy as np
 
 
-def damping_ratio(c: np.ndarray, pairs: np.ndarray, mass: np.ndarray, fixed: np.ndarray,
-                  dt: float, others: np.ndarray | None = None) -> np.ndarray:
-    """c_eff / c of each thread at steps of ``dt`` [s] (module doc), shape (P,): damping ``c``
-    [N s/m] (P,), end nodes ``pairs`` (P, 2), node masses ``mass`` [kg] (N,), clamped nodes
-    ``fixed`` (N,) (they take no share); ``others``: the nodes of other dampers, one entry a
-    damper at a node (the closing cables' vertices), which take a share too. 1 where a thread
-    has no damper or moves nothing."""
-    damped = c > 0.0
-    ends = pairs[damped].ravel()
+def node_shares(c: np.ndarray, pairs: np.ndarray, mass: np.ndarray, fixed: np.ndarray,
+                others: np.ndarray | None = None) -> np.ndarray:
+    """Each node's d / m [1/kg], shape (N,): d the dampers meeting there (the damped threads
+    of damping ``c`` [N s/m] (P,) and end nodes ``pairs`` (P, 2), and ``others``: one entry a
+    damper at a node, the closing cables' vertices), ``mass`` [kg] (N,); 0 at a clamped node
+    (``fixed``, (N,): it takes no share)."""
+    ends = pairs[c > 0.0].ravel()
     if others is not None:
         ends = np.concatenate([ends, others])
     degree = np.bincount(ends, minlength=mass.size)
-    share = np.where(fixed, 0.0, degree / mass)  # d_i / m_i [1/kg]
+    return np.where(fixed, 0.0, degree / mass)
+
+
+def damping_ratio(c: np.ndarray, pairs: np.ndarray, share: np.ndarray,
+                  dt: float) -> np.ndarray:
+    """c_eff / c of each thread at steps of ``dt`` [s] (module doc), shape (P,): damping ``c``
+    [N s/m] (P,), end nodes ``pairs`` (P, 2), the nodes' shares d / m [1/kg] (N,)
+    (:func:`node_shares`). 1 where a thread has no damper or moves nothing."""
     x = c * dt * (share[pairs[:, 0]] + share[pairs[:, 1]])
     safe = np.where(x > 0.0, x, 1.0)
     return np.where(x > 0.0, -np.expm1(-x) / safe, 1.0)

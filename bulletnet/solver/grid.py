@@ -388,14 +388,14 @@ def _other_threads(grid, views, dt, linearize):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def thread_forces(grid, views):
+def thread_forces(grid, views, dt):
     """T e of every grid thread into th and tv, the other threads' forces [N] into other."""
     ns, x, v = U(grid.ns), grid.x, grid.v
     _tension_stencil(x, v, ONE, grid.h_rest, grid.h_k, grid.h_c, grid.th,
                      U(grid.h_rest.shape[0]), ns)
     _tension_stencil(x, v, ns, grid.v_rest, grid.v_k, grid.v_c, grid.tv,
                      U(grid.v_rest.shape[0]), ns)
-    _other_threads(grid, views, 0.0, False)
+    _other_threads(grid, views, dt, False)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -414,7 +414,7 @@ def symplectic_step(grid, views, dt, bending_scale, increment):
     rows only with ``increment`` (the contact stage reads it)."""
     ns, length = U(grid.ns), U(grid.x.shape[1])
     x, v, dv, inv_mass = grid.x, grid.v, grid.dv, grid.inv_mass
-    thread_forces(grid, views)
+    thread_forces(grid, views, dt)
     for a in range(U(3)):
         if increment:  # two loops written out: one loop with this test inside is 5-10 % slower
             for i in range(length):

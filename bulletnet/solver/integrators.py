@@ -366,7 +366,7 @@ def symplectic_increment(pos, vel, model, work, dt):
     inv_mass, force, dv = model.inv_mass, work.force, work.dv
     axial_forces(pos, vel, model.pairs, model.rest, model.rest_rate, model.k_a, model.c_a,
                  model.bilateral, force, work.tension)
-    cable_forces(pos, vel, model.cables, force, False, 0.0)
+    cable_forces(pos, vel, model.cables, force, False, dt)
     orbit_forces(pos, vel, model.mass, model.orbit, force)
     for i in range(pos.shape[0]):
         h = dt * inv_mass[i]
