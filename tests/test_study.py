@@ -411,9 +411,11 @@ seed = 1
 
 def test_tow_study_reads_the_tow_measures_and_reports_its_outcomes(tmp_path):
     # Reference: each run's own recording (kept with record=True): the row's tow measures are
-    # its tow_* attributes, and the report counts the tow's outcome words. The scene is
+    # its tow_* attributes and its energy line `bulletnet metrics` prints, and the report
+    # counts the tow's outcome words. The scene is
     # conftest.small_tow's (a burn at 0.2 s before the net holds the debris: slipped at
     # once), with tow.stop_when_decided, so each run ends at 0.2 s.
+    from bulletnet.analysis.metrics import capture_summary
     from tests.conftest import small_tow
 
     given = {"net.nodes_per_side": 6, "net.mesh_length": 1.0, "scene.duration": 0.5,
@@ -448,6 +450,8 @@ seed = 3
                      "tow_snap_peak_N", "tow_least_distance_m",
                      "tow_largest_debris_rate_deg_s"):
             assert row[name] == attrs[name], name
+        rec = bn.open_recording(tmp_path / "out" / "runs" / f"run_{k:05d}.h5")
+        assert row["max_energy_gain_J"] == capture_summary(rec)["max_energy_gain_J"]
     report(tmp_path / "out")
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["probabilities"]["tow_outcome"]["overall"]["slipped"]["count"] == 2

@@ -447,11 +447,19 @@ def spin(rec: Recording) -> dict:
             "magnitude_change_deg_s": float(np.linalg.norm(w[-1]) - np.linalg.norm(w[0]))}
 
 
+def energy_gain(rec: Recording) -> float:
+    """The largest rise of the mechanical energy above its start and the winches', the
+    reel's and the thrust's work over the recorded frames [J] (:func:`energy`,
+    :func:`winch_work`, :func:`reel_work`, :func:`thrust_work`); a sound run has none."""
+    total = energy(rec)
+    return float(np.max(total - total[0] - winch_work(rec) - reel_work(rec)
+                        - thrust_work(rec)))
+
+
 def capture_summary(rec: Recording) -> dict:
     """Capture measures (JSON-ready, units in the keys): first-contact and leave times,
     peak nodes in contact and wrap, the debris' spin change, the largest rise of the
-    mechanical energy above its start plus the winches', the reel's and the thrust's work
-    (:func:`energy`, :func:`winch_work`, :func:`reel_work`, :func:`thrust_work`; a sound run
+    mechanical energy above its start plus the work done (:func:`energy_gain`; a sound run
     has none), the outcome (:func:`capture_outcome`: ``outcome``, ``outcome_time_s`` when
     decided and
     ``outcome_since_s`` when its condition began, -1 while undecided, and
@@ -459,7 +467,6 @@ def capture_summary(rec: Recording) -> dict:
     count = nodes_in_contact(rec)
     wrapped = wrap(rec)
     k = int(np.argmax(wrapped))
-    total = energy(rec)
     scores, judged = capture_outcome(rec)
     best = int(np.argmax(scores[:, 2]))
     return {
@@ -470,8 +477,7 @@ def capture_summary(rec: Recording) -> dict:
         "max_nodes_in_contact": int(count.max()),
         "max_wrap": float(wrapped[k]), "max_wrap_time_s": float(rec.time[k]),
         "spin": spin(rec),
-        "max_energy_gain_J": float(np.max(total - total[0] - winch_work(rec)
-                                          - reel_work(rec) - thrust_work(rec))),
+        "max_energy_gain_J": energy_gain(rec),
         "outcome": judged.outcome, "outcome_time_s": judged.time,
         "outcome_since_s": judged.since, "outcome_reason": judged.reason,
         "max_capture_quality": float(scores[best, 2]),

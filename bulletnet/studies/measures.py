@@ -129,6 +129,12 @@ def _tow_attribute(name: str, unset: float | None = None):
     return measure
 
 
+def _energy_gain(rec: Recording) -> float:
+    from ..analysis.metrics import energy_gain
+
+    return energy_gain(rec)
+
+
 def tow_outcome(rec: Recording) -> str | None:
     """The tow's outcome (root attribute ``tow_outcome``: towed, slipped, collided or
     undecided); None where the recording has none."""
@@ -191,12 +197,16 @@ TOW_MEASURES: Measures = {
     "tow_snap_peak_N": _tow_attribute("tow_snap_peak_N"),
     "tow_least_distance_m": _tow_attribute("tow_least_distance_m", -1.0),
     "tow_largest_debris_rate_deg_s": _tow_attribute("tow_largest_debris_rate_deg_s"),
+    "max_energy_gain_J": _energy_gain,
 }
 """Summary measures of a tow (a scene with ``[tow]`` judged, docs/tow.md): its outcome, the
 burn's start [s] and when the outcome was decided [s] (None: never started), the tether's
 peak and mean tension at the chaser [N], the snaps [-] and the largest snap's peak [N], the
 least chaser-to-debris distance [m] (None: never started) and the debris' largest angular
-speed [deg/s], all from the recording's ``tow_*`` attributes."""
+speed [deg/s], all from the recording's ``tow_*`` attributes; and the largest rise of the
+mechanical energy above its start and the work done [J]
+(:func:`bulletnet.analysis.metrics.energy_gain`: whether the run stayed sound through its
+snaps; a sound run has none)."""
 
 
 def summary_measures(scenario) -> Measures:
