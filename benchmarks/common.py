@@ -12,9 +12,10 @@ from pathlib import Path
 import yardstick
 
 import bulletnet as bn
+from bulletnet.sim.observers import Observer
 from bulletnet.studies.bench import ERROR_KEYS, rmse_measure, timed
 
-__all__ = ["ERROR_KEYS", "Yardsticks", "errors", "output_dir", "parser", "timed"]
+__all__ = ["ERROR_KEYS", "At", "Yardsticks", "errors", "output_dir", "parser", "timed"]
 
 DEPLOYMENT_THREADS = 2 * 11 * 10 + 4
 """Threads of the paper's Ns = 11 net (the yardstick's) [-]."""
@@ -102,6 +103,24 @@ class Yardsticks:
                                         "threads": DEPLOYMENT_THREADS,
                                         "us_per_step": 1e-3 * self.bound_ns
                                         * DEPLOYMENT_THREADS}}
+
+
+class At(Observer):
+    """Acts once on a run, at its first frame at or after ``at`` [s]: keeps what :meth:`act`
+    returns in ``taken`` and stops the run."""
+
+    def __init__(self, at: float):
+        self.at, self.taken = at, None
+
+    def frame(self, run) -> bool:
+        if run.state.time < self.at - 1e-9:
+            return False
+        self.taken = self.act(run.engine, run.state)
+        return True
+
+    def act(self, engine, state):
+        """What to take from the run's engine and state at that frame."""
+        raise NotImplementedError
 
 
 def errors(path, reference) -> dict:

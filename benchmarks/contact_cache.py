@@ -23,10 +23,9 @@ import time
 
 import numba as nb
 import numpy as np
-from common import Yardsticks, output_dir, parser
+from common import At, Yardsticks, output_dir, parser
 
 import bulletnet as bn
-from bulletnet.sim.observers import Observer
 from bulletnet.solver.contact_stage import debris_stage
 from bulletnet.solver.debris_gap import CLEAR_MARGIN, debris_pose, surface_speed
 
@@ -34,22 +33,15 @@ CALLS = 2000
 """Debris-stage calls in one timed loop [-]."""
 
 
-class Snapshot(Observer):
+class Snapshot(At):
     """Takes the engine's state and contact arrays at the first frame at or after ``at`` [s]
     and stops the run."""
 
-    def __init__(self, at: float):
-        self.at, self.taken = at, None
-
-    def frame(self, run) -> bool:
-        if run.state.time < self.at - 1e-9:
-            return False
-        e, s = run.engine, run.state
-        self.taken = {"pos": s.position.copy(), "vel": s.velocity.copy(),
-                      "dv": e.step_work.dv.copy(), "mass": e.arrays.mass,
-                      "radius": e.arrays.radius, "fixed": e.arrays.fixed,
-                      "contact": e.contact.arrays, "dt": e.dt, "t": s.time}
-        return True
+    def act(self, e, s):
+        return {"pos": s.position.copy(), "vel": s.velocity.copy(),
+                "dv": e.step_work.dv.copy(), "mass": e.arrays.mass,
+                "radius": e.arrays.radius, "fixed": e.arrays.fixed,
+                "contact": e.contact.arrays, "dt": e.dt, "t": s.time}
 
 
 @nb.njit(cache=True)

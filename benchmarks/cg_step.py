@@ -1,0 +1,286 @@
+"""Where the implicit step's time goes in the captures, against the machine's own bounds.
+
+The capture with bending (``scenarios/capture.toml``, state at ``--capture-at``) and the
+closing capture (``scenarios/capture_closing.toml``, at ``--closing-at``) run to their
+snapshot; there, on the grid path and inside compiled loops (no Python call between calls):
+
+1. the CG iterations a step of the run so far, and each part of a CG iteration, called
+   ``CALLS`` times on the snapshot's vectors: the product A d, the preconditioner's factor
+   (once a step), the preconditioning, the dot products (node by node, in node order: one
+   sequential chain of additions each), the vector updates (best of 5 loops);
+2. two bounds measured beside them: the memory bandwidth of a triad over arrays as large as
+   the iteration's working set (so from the same cache level: above L1, inside L2), which
+   with the bytes an iteration's passes read and write (counted below, :data:`PASS_ROWS`)
+   gives the iteration's traffic floor; and the latency of a sequential sum over the nodes,
+   the floor of one dot product in node order (beside it the same sum left free to be
+   reordered, as a vectorized reduction would be);
+3. on the pair list at the same state (the two paths run bit for bit alike), the system's
+   matrix assembled column by column from the solver's own product, and plain PCG
+   iteration counts to the scene's tolerance, from the solver's warm start and from zero,
+   with block Jacobi (the solver's), symmetric Gauss-Seidel and, if ``pyamg`` is installed,
+   smoothed-aggregation AMG (a V-cycle) as preconditioners.
+
+Also the frozen yardstick, timed at the start and the end. Writes ``OUT/cg_step.json``:
+
+    python benchmarks/cg_step.py benchmarks/results [--capture-at 10] [--closing-at 30]
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+
+import numba as nb
+import numpy as np
+from common import At, Yardsticks, output_dir, parser
+
+import bulletnet as bn
+from bulletnet.solver import grid as G
+from bulletnet.solver import integrators, pcg
+
+CALLS = 5000
+"""Calls of a part in one timed loop [-]."""
+
+PASS_ROWS = {"product": 35, "preconditioning": 15, "dot_d_ad": 6, "updates": 27,
+             "dots_rz_rr": 6}
+"""Rows of L doubles each pass of a CG iteration reads plus writes (grid layout): the product
+(two thread stencils: d 3, the blocks' along and across 2, axes 3, products written 3, each
+x2; the node pass: mass 1, d 3, both products 6, A d written 3), the preconditioning (inverse
+blocks 9, r 3, z written 3), d . A d (6), the updates (dv, d, r, A d read, dv and r written;
+then z, d read and d written), r . z with r . r (6)."""
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _time_product(grid, d, ad, calls):
+    for _ in range(calls):
+        G._apply(grid, d, ad)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _time_factor(grid, calls):
+    for _ in range(calls):
+        G._block_jacobi(grid)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _time_preconditioning(grid, r, z, calls):
+    for _ in range(calls):
+        G._precondition(grid, r, z)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _time_dot(d, ad, count, calls):
+    s = 0.0
+    for _ in range(calls):
+        s += pcg._dot(d, ad, nb.uint64(count))
+    return s
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _time_dots(r, z, count, calls):
+    s = 0.0
+    for _ in range(calls):
+        rz, rr = pcg._dots(r, z, nb.uint64(count))
+        s += rz + rr
+    return s
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _time_updates(dv, r, z, d, ad, calls):
+    """The iteration's element-by-element updates as :func:`bulletnet.solver.pcg.solve`
+    writes them (alpha, beta tiny: the vectors stay as they are)."""
+    dv_e, r_e, z_e, d_e, ad_e = (dv.reshape(-1), r.reshape(-1), z.reshape(-1),
+                                 d.reshape(-1), ad.reshape(-1))
+    size = nb.uint64(r_e.shape[0])
+    for _ in range(calls):
+        for k in range(size):
+            dv_e[k] += 1e-300 * d_e[k]
+            r_e[k] -= 1e-300 * ad_e[k]
+        for k in range(size):
+            d_e[k] = z_e[k] + 1e-300 * d_e[k]
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _triad(a, b, c, calls):
+    for _ in range(calls):
+        for i in range(a.shape[0]):
+            a[i] = b[i] + 1e-300 * c[i]
+
+
+def _sums(a, count, calls):
+    """``calls`` sums of a[:count], in order (compiled as :data:`_chain`) or with the
+    additions free to be reordered, vectorized (:data:`_reordered`)."""
+    s = 0.0
+    for _ in range(calls):
+        t = 0.0
+        for i in range(count):
+            t += a[i]
+        s += t
+    return s
+
+
+_chain = nb.njit(error_model="numpy")(_sums)
+_reordered = nb.njit(error_model="numpy", fastmath={"reassoc"})(_sums)
+
+
+def best_us(call, calls: int = CALLS) -> float:
+    """Best of 5 timed loops of ``call(calls)``, per call [us] (one untimed warm-up call)."""
+    call(2)
+    best = float("inf")
+    for _ in range(5):
+        start = time.perf_counter()
+        call(calls)
+        best = min(best, (time.perf_counter() - start) / calls)
+    return 1e6 * best
+
+
+def bounds(working_set_bytes: int, count: int) -> dict:
+    """The triad's bandwidth over three arrays of ``working_set_bytes`` in all [GB/s], a
+    sequential sum's time over ``count`` terms [us] and the same sum's, reordered."""
+    n = max(working_set_bytes // 24, 1024)
+    a, b, c = (np.random.default_rng(k).random(n) for k in range(3))
+    triad = best_us(lambda k: _triad(a, b, c, k), 2000)
+    terms = np.random.default_rng(3).random(count)
+    return {"triad_arrays_bytes": 24 * n, "bandwidth_GB_s": 24 * n / triad * 1e-3,
+            "sequential_sum_us": best_us(lambda k: _chain(terms, count, k)),
+            "reordered_sum_us": best_us(lambda k: _reordered(terms, count, k))}
+
+
+class GridParts(At):
+    """At the first frame at or after ``at`` [s]: a CG iteration's parts timed on the grid
+    path (see the module doc); then stops the run."""
+
+    def act(self, e, state):
+        g = e.grid
+        per_step = e.work.cg_iterations[0] / e.steps  # the run so far
+        count, length = g.count, g.x.shape[1]
+        r, z, d, ad = g.cg[0], g.cg[1], g.cg[2], g.cg[3]
+        parts = {
+            "product": best_us(lambda k: _time_product(g, d, ad, k)),
+            "preconditioning": best_us(lambda k: _time_preconditioning(g, r, z, k)),
+            "dot_d_ad": best_us(lambda k: _time_dot(d, ad, count, k)),
+            "updates": best_us(lambda k: _time_updates(g.dv, r, z, d, ad, k)),
+            "dots_rz_rr": best_us(lambda k: _time_dots(r, z, count, k)),
+        }
+        iteration = sum(parts.values())
+        traffic = 8 * length * sum(PASS_ROWS.values())
+        measured = bounds(traffic, count)
+        floor = {"traffic_us": traffic / measured["bandwidth_GB_s"] * 1e-3,
+                 "two_sums_us": 2 * measured["sequential_sum_us"]}
+        return {
+            "t_s": state.time, "nodes": count, "row_length": length,
+            "cg_iterations_per_step": per_step,
+            "factor_us": best_us(lambda k: _time_factor(g, k)),
+            "iteration_parts_us": parts, "iteration_us": iteration,
+            "iteration_bytes": traffic, "bounds": measured, "iteration_floor_us": floor,
+            "cg_per_step_us": iteration * per_step}
+
+
+class PairSystemAt(At):
+    """At the first frame at or after ``at`` [s] on the pair list: one implicit increment,
+    then the system's matrix [kg] (3N x 3N, node-major) assembled from the solver's product
+    (:func:`bulletnet.solver.integrators._apply_blocks` on unit vectors), the warm start and
+    the solution; then stops the run."""
+
+    def act(self, e, s):
+        a, w = e.arrays, e.step_work
+        warm, before = w.dv.copy(), int(w.cg_iterations[0])
+        quat, omega = e.rotations(s)  # the bending forces held, as the loop holds them
+        integrators.external_forces(s.position, s.velocity, quat, omega, a, w, e.gravity,
+                                    e.external, 0.0, True)
+        integrators.implicit_increment(s.position, s.velocity, a, w, e.dt, e.cg_tolerance)
+        system = integrators.PairSystem(a.mass, a.fixed, a.pairs, w.along, w.across, w.axis,
+                                        w.block_inv, a.cables)
+        n = s.position.shape[0]
+        matrix = np.zeros((3 * n, 3 * n))
+        unit, column = np.zeros((n, 3)), np.zeros((n, 3))
+        for k in range(3 * n):
+            unit.reshape(-1)[k] = 1.0
+            integrators._apply_blocks(system, unit, column)
+            matrix[:, k] = column.reshape(-1)
+            unit.reshape(-1)[k] = 0.0
+        return {"matrix": matrix, "warm": warm.reshape(-1),
+                "solver_iterations": int(w.cg_iterations[0]) - before,
+                "solution": w.dv.copy().reshape(-1), "tol": e.cg_tolerance}
+
+
+def pcg_iterations(matrix, b, x0, tol: float, precondition) -> int:
+    """Plain preconditioned CG's iterations from x0 to |b - A x| <= tol |b| (at most 5000)."""
+    x = x0.copy()
+    r = b - matrix @ x
+    z = precondition(r)
+    d = z.copy()
+    rz, k, goal = r @ z, 0, tol * np.linalg.norm(b)
+    while np.linalg.norm(r) > goal and k < 5000:
+        ad = matrix @ d
+        alpha = rz / (d @ ad)
+        x += alpha * d
+        r -= alpha * ad
+        z = precondition(r)
+        rz, previous = r @ z, rz
+        d = z + rz / previous * d
+        k += 1
+    return k
+
+
+def preconditioners(taken: dict) -> dict:
+    """Iterations by preconditioner, from the warm start and from zero (see module doc)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve_triangular
+
+    a = sp.csr_matrix(taken["matrix"])
+    b, warm, tol = a @ taken["solution"], taken["warm"], taken["tol"]
+    n = a.shape[0] // 3
+    blocks = np.linalg.inv(taken["matrix"].reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :])
+    lower, upper, diagonal = sp.tril(a, format="csr"), sp.triu(a, format="csr"), a.diagonal()
+    methods = {
+        "block_jacobi": lambda r: np.einsum("nab,nb->na", blocks, r.reshape(n, 3)).reshape(-1),
+        "symmetric_gauss_seidel": lambda r: spsolve_triangular(
+            upper, diagonal * spsolve_triangular(lower, r, lower=True), lower=False),
+    }
+    try:
+        import pyamg
+        solver = pyamg.smoothed_aggregation_solver(a, B=np.kron(np.ones((n, 1)), np.eye(3)),
+                                                   max_coarse=30)
+        cycle = solver.aspreconditioner(cycle="V")
+        methods["smoothed_aggregation_amg"] = lambda r: cycle @ r
+    except ImportError:
+        pass
+    relative = np.linalg.norm(b - a @ warm) / np.linalg.norm(b)
+    return {"warm_start_relative_residual": relative, "tolerance": tol,
+            "solver_iterations": taken["solver_iterations"], "iterations": {
+        name: {"warm": pcg_iterations(a, b, warm, tol, f),
+               "zero": pcg_iterations(a, b, np.zeros_like(b), tol, f)}
+        for name, f in methods.items()}}
+
+
+def main() -> int:
+    p = parser(__doc__.split("\n\n")[0])
+    p.add_argument("--capture-at", type=float, default=10.0, help="snapshot time [s]")
+    p.add_argument("--closing-at", type=float, default=30.0, help="snapshot time [s]")
+    args = p.parse_args()
+    out = output_dir(args)
+    yard = Yardsticks()
+    yard.time()
+    cases = {"capture_bending": ("capture", {"bending.enabled": True}, args.capture_at),
+             "capture_closing": ("capture_closing", {}, args.closing_at)}
+    doc = {"machine": platform.processor() or platform.machine(), "cases": {}}
+    for name, (scene_name, overrides, at) in cases.items():
+        scene = bn.load_scenario(scene_name, {**overrides, "scene.duration": at + 1.0})
+        parts = GridParts(at)
+        bn.run(scene, None, observers=[parts])
+        system = PairSystemAt(at)
+        bn.run(scene.with_overrides({"simulation.kernels": "pairs"}), None,
+               observers=[system])
+        doc["cases"][name] = {"scene": scene_name, "overrides": overrides, **parts.taken,
+                              "preconditioners": preconditioners(system.taken)}
+        print(f"{name}: {json.dumps(doc['cases'][name], indent=1)}", flush=True)
+    yard.time()
+    doc["yardsticks"] = yard.doc()
+    (out / "cg_step.json").write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
