@@ -353,6 +353,31 @@ def test_cli_bad_study_is_one_line(tmp_path):
     assert proc.returncode == 2 and "not a study folder" in proc.stderr
 
 
+def test_cli_set_is_the_study_files_set_extended(tmp_path):
+    # Reference: the same study with the key written in its file's [set]: --set adds it to
+    # every run, so the two tables agree to the last bit, and the study's record (study.json,
+    # which a resume checks) carries it as its [set] does.
+    plain = write(tmp_path, TINY_DEPLOYMENT)
+    proc = cli("study", str(plain), "--out", str(tmp_path / "cli"), "--serial",
+               "--set", "simulation.record_rate=50", "--set", "scene.duration=0.06")
+    assert proc.returncode == 0, proc.stderr
+    written = write(tmp_path, TINY_DEPLOYMENT.replace(
+        '"scene.duration" = 0.05', '"scene.duration" = 0.06\n"simulation.record_rate" = 50'),
+        "written.toml")
+    run_study(load_study(written), tmp_path / "file", serial=True)
+    assert inputs_and_measures(tmp_path / "cli") == inputs_and_measures(tmp_path / "file")
+    record = json.loads((tmp_path / "cli" / "study.json").read_text())
+    assert record["set"]["simulation.record_rate"] == 50
+    assert record["set"]["scene.duration"] == 0.06
+    # a key the study varies, and --set beside --report: one line each, exit 2
+    proc = cli("study", str(plain), "--out", str(tmp_path / "o"), "--set",
+               "launch.elevation=40")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "varies it" in proc.stderr
+    proc = cli("study", "--report", str(tmp_path / "cli"), "--set", "scene.duration=1")
+    assert proc.returncode == 2 and "not to --report" in proc.stderr
+
+
 def test_example_studies_are_valid():
     # Every study file shipped in scenarios/ loads (its keys are the scene's, its
     # distributions valid), draws at least the runs its report bins need, and is not

@@ -267,6 +267,10 @@ def _add_study(sub) -> None:
                        "and DIR/figures/ from the table of a study (done, running or stopped) "
                        "and print its probabilities and leading Sobol' indices")
     _add_dask(study, "the runs")
+    study.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                       help="set a scene key in every run, on top of the study file's [set], "
+                            "e.g. --set simulation.dt=1e-3 (values in SI units, TOML syntax; "
+                            "repeatable; a key the study varies is an error)")
     study.add_argument("--record", action="store_true", help="keep each run's recording as "
                        "DIR/runs/run_NNNNN.h5 (default: summaries only)")
     study.add_argument("--retry-failed", action="store_true", help="also rerun the runs whose "
@@ -280,11 +284,14 @@ def _add_study(sub) -> None:
 def cmd_study(args) -> int:
     from pathlib import Path
 
+    from ..model.scenario import parse_override
     from ..studies.report import report, summary_text
     from ..studies.study import load_study, run_study
 
     if (args.study is None) == (args.report is None):
         raise ScenarioError("give a STUDY.toml to run, or --report DIR, not both")
+    if args.report is not None and args.set:
+        raise ScenarioError("--set applies to a study to run, not to --report")
     if args.bins < 1:
         raise ScenarioError(f"--bins {args.bins}: expected an integer >= 1")
     if not 0 < args.confidence < 1:
@@ -297,7 +304,7 @@ def cmd_study(args) -> int:
         raise ScenarioError("--out DIR: the study's folder is required (rerun into it to "
                             "resume)")
     _check_workers(args.workers)
-    spec = load_study(args.study)
+    spec = load_study(args.study, dict(parse_override(item) for item in args.set))
     out = Path(args.out)
     print(f"bulletnet: study {spec.path.name}: {spec.design} design, {len(spec.values)} runs "
           f"of {spec.function or spec.scene} -> {out}", file=sys.stderr)

@@ -197,9 +197,11 @@ def column_names(units: dict[str, str]) -> dict[str, str]:
             for key, unit in units.items()}
 
 
-def load_study(path: str | Path) -> Study:
+def load_study(path: str | Path, overrides: dict | None = None) -> Study:
     """Parse and validate a study file, draw its design, and build every run's scene: a bad
-    key, distribution or drawn value is one clear error before anything runs."""
+    key, distribution or drawn value is one clear error before anything runs. ``overrides``
+    (scene key -> value; ``bulletnet study --set``) are set in every run on top of the file's
+    [set], and are part of the study as [set] is (study.json, the resume check)."""
     path = Path(path)
     doc = read_plan(path, ("scene", "function", "design", "runs", "seed", "measures", "set",
                            "vary"))
@@ -223,10 +225,13 @@ def load_study(path: str | Path) -> Study:
     if design == "sobol" and (runs < 2 or runs & (runs - 1)):
         raise ScenarioError(f"{path}: runs: design 'sobol' takes the base sample count N, a "
                             f"power of 2 >= 2 (N (D + 2) runs in all), got {runs}")
-    fixed = plan_table(doc.get("set", {}), path, "set")
+    fixed = {**plan_table(doc.get("set", {}), path, "set"), **(overrides or {})}
     vary = plan_table(doc.get("vary", {}), path, "vary")
     if not vary:
         raise ScenarioError(f"{path}: [vary]: a study varies at least one key")
+    varied = sorted(set(overrides or {}) & set(vary))
+    if varied:
+        raise ScenarioError(f"--set {varied[0]}: {path} varies it ([vary])")
     both = sorted(set(fixed) & set(vary))
     if both:
         raise ScenarioError(f"{path}: '{both[0]}' is both in [set] and in [vary]")
