@@ -198,6 +198,28 @@ def test_a_failed_run_is_a_row_not_a_crash(tmp_path):
     assert done["trials"] == 3 and done["best"].user_attrs["completed"] == 4 - failing
 
 
+def test_cli_set_is_the_files_set_extended(tmp_path):
+    # Reference: the same optimisation with the input written in its file's [set]: --set
+    # adds it to every run of every design, so the two tables agree to the last bit (but for
+    # wall time), and the optimisation's record keeps it with its [set].
+    path = bowl(tmp_path, trials=3)
+    proc = cli("optimize", str(path), "--out", str(tmp_path / "cli"), "--serial", "--set",
+               "fail_above=0.5")
+    assert proc.returncode == 0, proc.stderr
+    written = tmp_path / "written.toml"
+    written.write_text(path.read_text().replace("[vary]", "[set]\nfail_above = 0.5\n[vary]"))
+    run_optimisation(load_optimisation(written), tmp_path / "file", serial=True)
+    assert without_wall(tmp_path / "cli") == without_wall(tmp_path / "file")
+    assert any(r["status"] == "error" for r in without_wall(tmp_path / "cli"))
+    record = json.loads((tmp_path / "cli" / "optimize.json").read_text())
+    assert record["file"]["set"] == {"fail_above": 0.5}
+    for args, needle in ((("--out", str(tmp_path / "o"), "--set", "x=0.5"), "varies it"),
+                         (("--report", str(tmp_path / "cli"), "--set", "u=1"), "not to --report")):
+        proc = cli("optimize", *([] if args[0] == "--report" else [str(path)]), *args)
+        assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+        assert needle in proc.stderr
+
+
 def test_a_probability_objective_is_its_wilson_bound_less_the_cost(tmp_path):
     # reference: Wilson 1927 (report.wilson): 3 captures of 4 runs, one of them an error
     # (which counts as not captured); score = lower bound - cost_weight * net mass; the

@@ -68,6 +68,30 @@ def test_cli_sweep_serial_writes_table_and_plots(sweep_file, tmp_path):
     assert (tmp_path / "o" / "figures" / "launch.elevation.png").exists()
 
 
+def test_cli_sweep_set_is_the_files_set_extended(sweep_file, tmp_path):
+    # Reference: the same sweep with the key written in its file's [set]: --set adds it to
+    # every variant, so the two tables agree to the last bit (but for wall time and paths).
+    proc = cli("sweep", str(sweep_file), "--serial", "--out", str(tmp_path / "cli"),
+               "--set", "scene.duration=0.06")
+    assert proc.returncode == 0, proc.stderr
+    written = tmp_path / "written.toml"
+    written.write_text(SWEEP.replace('"scene.duration" = 0.05', '"scene.duration" = 0.06'))
+    proc = cli("sweep", str(written), "--serial", "--out", str(tmp_path / "file"))
+    assert proc.returncode == 0, proc.stderr
+
+    def rows(folder):
+        with (folder / "sweep.csv").open() as f:
+            return [{k: v for k, v in r.items() if k not in ("wall_s", "recording")}
+                    for r in csv.DictReader(f)]
+
+    assert rows(tmp_path / "cli") == rows(tmp_path / "file")
+    assert all(r["scene.duration"] == "0.06" for r in rows(tmp_path / "cli"))
+    proc = cli("sweep", str(sweep_file), "--out", str(tmp_path / "o"), "--set",
+               "launch.elevation=40")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "varies it" in proc.stderr
+
+
 @pytest.mark.parametrize(("text", "needle"), [
     ('scene = "deployment"\n[vary]\n"net.colour" = [1]\n', "unknown key"),
     ('scene = "deployment"\n[vary]\n"net.nodes_per_side" = 11\n', "non-empty list"),

@@ -220,12 +220,28 @@ def _add_dask(parser: argparse.ArgumentParser, what: str) -> None:
                         help=f"no Dask: run {what} one after another in this process")
 
 
+def _add_set_every_run(parser: argparse.ArgumentParser, runs: str) -> None:
+    """--set of a command that runs a file's plan: scene keys on top of the file's [set]."""
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help=f"set a scene key in {runs}, on top of the file's [set], e.g. "
+                             "--set simulation.dt=1e-3 (values in SI units, TOML syntax; "
+                             "repeatable; a key the file varies is an error)")
+
+
+def _set_overrides(args) -> dict:
+    """The --set pairs of a plan command, key -> value."""
+    from ..model.scenario import parse_override
+
+    return dict(parse_override(item) for item in args.set)
+
+
 def _add_sweep(sub) -> None:
     sweep = sub.add_parser("sweep", help="run variants of a scene over Dask and gather a table "
                            "of summary measures (CSV, Parquet with pyarrow) and plots")
     sweep.add_argument("sweep", metavar="SWEEP.toml", help="sweep file (see "
                        "scenarios/sweep_example.toml)")
     _add_dask(sweep, "the variants")
+    _add_set_every_run(sweep, "every variant")
     sweep.add_argument("--out", default="sweep", metavar="DIR",
                        help="folder for sweep.csv, runs/ and figures/")
 
@@ -238,7 +254,7 @@ def cmd_sweep(args) -> int:
     from ..studies.sweep import load_sweep, plot_sweep, run_sweep, write_table
 
     _check_workers(args.workers)
-    spec = load_sweep(args.sweep)
+    spec = load_sweep(args.sweep, _set_overrides(args))
     out = Path(args.out)
     print(f"bulletnet: {len(spec.variants)} variants of {spec.scene} -> {out}", file=sys.stderr)
     start = time.perf_counter()
@@ -267,10 +283,7 @@ def _add_study(sub) -> None:
                        "and DIR/figures/ from the table of a study (done, running or stopped) "
                        "and print its probabilities and leading Sobol' indices")
     _add_dask(study, "the runs")
-    study.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                       help="set a scene key in every run, on top of the study file's [set], "
-                            "e.g. --set simulation.dt=1e-3 (values in SI units, TOML syntax; "
-                            "repeatable; a key the study varies is an error)")
+    _add_set_every_run(study, "every run")
     study.add_argument("--record", action="store_true", help="keep each run's recording as "
                        "DIR/runs/run_NNNNN.h5 (default: summaries only)")
     study.add_argument("--retry-failed", action="store_true", help="also rerun the runs whose "
@@ -284,7 +297,6 @@ def _add_study(sub) -> None:
 def cmd_study(args) -> int:
     from pathlib import Path
 
-    from ..model.scenario import parse_override
     from ..studies.report import report, summary_text
     from ..studies.study import load_study, run_study
 
@@ -304,7 +316,7 @@ def cmd_study(args) -> int:
         raise ScenarioError("--out DIR: the study's folder is required (rerun into it to "
                             "resume)")
     _check_workers(args.workers)
-    spec = load_study(args.study, dict(parse_override(item) for item in args.set))
+    spec = load_study(args.study, _set_overrides(args))
     out = Path(args.out)
     print(f"bulletnet: study {spec.path.name}: {spec.design} design, {len(spec.values)} runs "
           f"of {spec.function or spec.scene} -> {out}", file=sys.stderr)
@@ -344,6 +356,7 @@ def _add_optimize(sub) -> None:
                      "stream apart from the optimisation's) and report its objective and, for "
                      "a probability, its Wilson interval (0: none)")
     _add_dask(opt, "each design's runs")
+    _add_set_every_run(opt, "every run of every design")
 
 
 def cmd_optimize(args) -> int:
@@ -356,6 +369,8 @@ def cmd_optimize(args) -> int:
         raise ScenarioError("give a FILE.toml to run, or --report DIR, not both")
     if args.confirm < 0 or (args.confirm and args.report is None):
         raise ScenarioError(f"--confirm {args.confirm}: an integer >= 0, with --report DIR")
+    if args.report is not None and args.set:
+        raise ScenarioError("--set applies to an optimisation to run, not to --report")
     _check_workers(args.workers)
     if args.report is not None:
         out = Path(args.report)
@@ -366,7 +381,7 @@ def cmd_optimize(args) -> int:
     if args.out is None:
         raise ScenarioError("--out DIR: the optimisation's folder is required (rerun into it "
                             "to resume)")
-    spec = load_optimisation(args.file)
+    spec = load_optimisation(args.file, _set_overrides(args))
     out = Path(args.out)
     print(f"bulletnet: optimize {spec.path.name}: {spec.trials} designs ({spec.sampler}) of "
           f"{len(spec.draws)} runs of {spec.function or spec.scene} -> {out}", file=sys.stderr)
@@ -425,9 +440,9 @@ def cmd_bench(args) -> int:
 def _scene(args, flags: dict | None = None):
     """The scene of ``args`` with its --set overrides, then --bending and the command's other
     ``flags`` (dotted scene keys; None: not given)."""
-    from ..model.scenario import load, parse_override
+    from ..model.scenario import load
 
-    overrides = dict(parse_override(item) for item in args.set)
+    overrides = _set_overrides(args)
     flags = {"bending.enabled": args.bending, **(flags or {})}
     overrides.update({k: v for k, v in flags.items() if v is not None})
     return load(args.scene, overrides)

@@ -81,7 +81,7 @@ from .study import (
     study_measures,
     study_run,
 )
-from .sweep import base_scene, build_variants, plan_table, read_plan
+from .sweep import base_scene, build_variants, plan_table, read_plan, set_table
 
 KEYS = ("scene", "function", "measures", "seed", "trials", "draws", "sampler", "design", "set",
         "vary", "objective", "constraints", "first")
@@ -275,11 +275,16 @@ class Optimisation:
         return {key: v.distribution() for key, v in self.design.items()}
 
 
-def load_optimisation(path: str | Path) -> Optimisation:
+def load_optimisation(path: str | Path, overrides: dict | None = None) -> Optimisation:
     """Parse and validate an optimisation file; its scene built at the design's extremes and
-    for every draw, so a bad key or value is one error before anything runs."""
+    for every draw, so a bad key or value is one error before anything runs. ``overrides``
+    (``bulletnet optimize --set``) join the file's [set], and are kept with it."""
     path = Path(path)
     doc = read_plan(path, KEYS)
+    if overrides:
+        varied = [*plan_table(doc.get("design", {}), path, "design"),
+                  *plan_table(doc.get("vary", {}), path, "vary")]
+        doc["set"] = set_table(doc, path, overrides, varied)
     if "scene" in doc:
         doc["scene"] = base_scene(doc, path)
         if doc["scene"].endswith(".toml"):
@@ -306,13 +311,13 @@ def parse_optimisation(doc: dict, path: Path) -> Optimisation:
     if sampler not in SAMPLERS:
         raise ScenarioError(f"{path}: sampler: expected one of {', '.join(SAMPLERS)}, got "
                             f"{sampler!r}")
-    fixed = plan_table(doc.get("set", {}), path, "set")
     design = {k: parse_variable(v, f"{path}: design.{k}")
               for k, v in plan_table(doc.get("design", {}), path, "design").items()}
     if not design:
         raise ScenarioError(f"{path}: [design]: an optimisation has at least one variable")
     vary = {k: parse_distribution(v, f"{path}: vary.{k}")
             for k, v in plan_table(doc.get("vary", {}), path, "vary").items()}
+    fixed = plan_table(doc.get("set", {}), path, "set")
     keys = [*fixed, *design, *vary]
     twice = sorted({k for k in keys if keys.count(k) > 1})
     if twice:

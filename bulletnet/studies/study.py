@@ -52,7 +52,7 @@ import numpy as np
 from ..common.errors import BulletnetError, ScenarioError
 from .measures import summary_measures
 from .runner import estimated_cost, fan_out, kernel_kind, run_scene
-from .sweep import base_scene, build_variants, plan_table, read_plan, write_table
+from .sweep import base_scene, build_variants, plan_table, read_plan, set_table, write_table
 
 DESIGNS = ("random", "sobol")
 
@@ -225,13 +225,10 @@ def load_study(path: str | Path, overrides: dict | None = None) -> Study:
     if design == "sobol" and (runs < 2 or runs & (runs - 1)):
         raise ScenarioError(f"{path}: runs: design 'sobol' takes the base sample count N, a "
                             f"power of 2 >= 2 (N (D + 2) runs in all), got {runs}")
-    fixed = {**plan_table(doc.get("set", {}), path, "set"), **(overrides or {})}
     vary = plan_table(doc.get("vary", {}), path, "vary")
     if not vary:
         raise ScenarioError(f"{path}: [vary]: a study varies at least one key")
-    varied = sorted(set(overrides or {}) & set(vary))
-    if varied:
-        raise ScenarioError(f"--set {varied[0]}: {path} varies it ([vary])")
+    fixed = set_table(doc, path, overrides, vary)
     both = sorted(set(fixed) & set(vary))
     if both:
         raise ScenarioError(f"{path}: '{both[0]}' is both in [set] and in [vary]")

@@ -97,16 +97,16 @@ def build_variants(scene: str, fixed: dict, variants: list[dict], path: Path,
     return built
 
 
-def load_sweep(path: str | Path) -> Sweep:
+def load_sweep(path: str | Path, overrides: dict | None = None) -> Sweep:
     """Parse and validate a sweep file; every variant's scene is built, so a bad key or value
-    is one clear error before anything runs."""
+    is one clear error before anything runs. ``overrides`` (``bulletnet sweep --set``) are set
+    in every variant on top of the file's [set]."""
     from ..model.scenario import to_dict
 
     path = Path(path)
     doc = read_plan(path, ("scene", "mode", "set", "vary", "variant"))
     scene = base_scene(doc, path)
     mode = doc.get("mode", "factorial")
-    fixed = plan_table(doc.get("set", {}), path, "set")
     if mode == "factorial":
         vary = plan_table(doc.get("vary", {}), path, "vary")
         for key, values in vary.items():
@@ -122,6 +122,7 @@ def load_sweep(path: str | Path) -> Sweep:
     else:
         raise ScenarioError(f"{path}: mode: expected 'factorial' or 'list', got {mode!r}")
     swept = tuple(dict.fromkeys(k for v in variants for k in v))
+    fixed = set_table(doc, path, overrides, swept)
     built = build_variants(scene, fixed, variants, path)
     # every swept key in every row: the base scene's value where a variant keeps it
     complete = [fixed | {key: lookup(to_dict(b), key) for key in swept} for b in built]
@@ -143,6 +144,16 @@ def plan_table(value, path: Path, name: str) -> dict:
     if not isinstance(value, dict):
         raise ScenarioError(f"{path}: [{name}] must be a table of scene keys, got {value!r}")
     return value
+
+
+def set_table(doc: dict, path: Path, overrides: dict | None, varied) -> dict:
+    """The keys every run sets: the plan's [set] with ``overrides`` (``--set``, key ->
+    value) on top; an override of a key the plan varies (``varied``) is one clear error."""
+    overrides = overrides or {}
+    both = sorted(set(overrides) & set(varied))
+    if both:
+        raise ScenarioError(f"--set {both[0]}: {path} varies it")
+    return {**plan_table(doc.get("set", {}), path, "set"), **overrides}
 
 
 def run_variant(index: int, scene: str, overrides: dict, out: str,
