@@ -311,13 +311,13 @@ def parse_optimisation(doc: dict, path: Path) -> Optimisation:
     if sampler not in SAMPLERS:
         raise ScenarioError(f"{path}: sampler: expected one of {', '.join(SAMPLERS)}, got "
                             f"{sampler!r}")
+    fixed = plan_table(doc.get("set", {}), path, "set")
     design = {k: parse_variable(v, f"{path}: design.{k}")
               for k, v in plan_table(doc.get("design", {}), path, "design").items()}
     if not design:
         raise ScenarioError(f"{path}: [design]: an optimisation has at least one variable")
     vary = {k: parse_distribution(v, f"{path}: vary.{k}")
             for k, v in plan_table(doc.get("vary", {}), path, "vary").items()}
-    fixed = plan_table(doc.get("set", {}), path, "set")
     keys = [*fixed, *design, *vary]
     twice = sorted({k for k in keys if keys.count(k) > 1})
     if twice:
