@@ -29,12 +29,11 @@ Also the frozen yardstick, timed at the start and the end. Writes ``OUT/cg_step.
 from __future__ import annotations
 
 import json
-import platform
 import time
 
 import numba as nb
 import numpy as np
-from common import At, Yardsticks, output_dir, parser
+from common import At, Yardsticks, machine, output_dir, parser
 
 import bulletnet as bn
 from bulletnet.solver import grid as G
@@ -270,7 +269,7 @@ def main() -> int:
     yard.time()
     cases = {"capture_bending": ("capture", {"bending.enabled": True}, args.capture_at),
              "capture_closing": ("capture_closing", {}, args.closing_at)}
-    doc = {"machine": platform.processor() or platform.machine(), "cases": {}}
+    doc = {"machine": machine(), "cases": {}}
     for name, (scene_name, overrides, at) in cases.items():
         scene = bn.load_scenario(scene_name, {**overrides, "scene.duration": at + 1.0})
         parts = GridParts(at)

@@ -5,6 +5,8 @@ summary."""
 from __future__ import annotations
 
 import argparse
+import os
+import platform
 import statistics
 import time
 from pathlib import Path
@@ -15,10 +17,32 @@ import bulletnet as bn
 from bulletnet.sim.observers import Observer
 from bulletnet.studies.bench import ERROR_KEYS, rmse_measure, timed
 
-__all__ = ["ERROR_KEYS", "At", "Yardsticks", "errors", "output_dir", "parser", "timed"]
+__all__ = ["ERROR_KEYS", "At", "Yardsticks", "errors", "machine", "output_dir", "parser",
+           "timed"]
 
 DEPLOYMENT_THREADS = 2 * 11 * 10 + 4
 """Threads of the paper's Ns = 11 net (the yardstick's) [-]."""
+
+
+def machine() -> dict:
+    """What a speed figure was measured on: the CPU as the compiler sees it (its LLVM name and
+    widest vector extension: the kernels' code depends on both), its clock as the kernel
+    reports it [MHz], the cores and the load average over the last minute [-]. Sessions run on
+    different hosts (docs/speed.md), so every benchmark's JSON names its CPU."""
+    from llvmlite import binding
+
+    features = binding.get_host_cpu_features()
+    vector = next((v for v in ("avx512f", "avx2", "avx", "sse2") if features.get(v)), "none")
+    mhz = None
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("cpu MHz"):
+                mhz = float(line.split(":")[1])
+                break
+    except OSError:
+        pass
+    return {"arch": platform.machine(), "cpu": binding.get_host_cpu_name(), "vector": vector,
+            "mhz": mhz, "cpus": os.cpu_count(), "load_average_1min": os.getloadavg()[0]}
 
 
 def sqrt_division_bound(threads: int = DEPLOYMENT_THREADS, repeats: int = 200000) -> float:

@@ -17,13 +17,12 @@ from __future__ import annotations
 
 import json
 import math
-import platform
 import statistics
 import time
 
 import numba as nb
 import numpy as np
-from common import At, Yardsticks, output_dir, parser
+from common import At, Yardsticks, machine, output_dir, parser
 
 import bulletnet as bn
 from bulletnet.solver.contact_stage import debris_stage
@@ -104,7 +103,7 @@ def main() -> None:
     median = {name: statistics.median(w) for name, w in walls.items()}
     result = {
         "what": "debris contact stage on the removal's tow state, cache off and on",
-        "date": time.strftime("%Y-%m-%d %H:%M"), "machine": platform.machine(),
+        "date": time.strftime("%Y-%m-%d %H:%M"), "machine": machine(),
         "at_s": s["t"], "dt_s": s["dt"], "skin_m": skin, "calls": CALLS,
         "nodes": {"total": int(kinds.size), "no_contact": int((kinds == -1).sum()),
                   "out_of_bounding_sphere": int((kinds == 0).sum()),

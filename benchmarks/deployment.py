@@ -15,10 +15,9 @@ Usage: python benchmarks/deployment.py [OUT] [--repeats N] [--bullet-horizon S] 
 from __future__ import annotations
 
 import json
-import platform
 import statistics
 
-from common import Yardsticks, errors, output_dir, parser, timed
+from common import Yardsticks, errors, machine, output_dir, parser, timed
 
 import bulletnet as bn
 
@@ -31,8 +30,8 @@ def main() -> None:
     out = output_dir(args)
     base = bn.load_scenario("deployment")
     duration = base.scene.duration
-    doc = {"scene": "deployment", "duration_s": duration, "machine": platform.processor()
-           or platform.machine(), "bulletnet_version": bn.__version__, "runs": {}}
+    doc = {"scene": "deployment", "duration_s": duration, "machine": machine(),
+           "bulletnet_version": bn.__version__, "runs": {}}
 
     fine_path = out / "fine.h5"
     fine_scene = base.with_overrides({"simulation.integrator": "symplectic_euler",

@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 
 import yardstick
-from common import output_dir, parser
+from common import machine, output_dir, parser
 
 STEPS = {
     "deployment (first)": ["run", "deployment"],
@@ -79,8 +79,7 @@ def main() -> int:
                        "repeats": rows} for label, rows in runs.items()}
     result = {"what": "bulletnet commands as processes from an empty numba cache, in order",
               "date": time.strftime("%Y-%m-%d"), "machine": {
-                  "cpus": os.cpu_count(), "processor": platform.processor(),
-                  "python": platform.python_version()},
+                  **machine(), "python": platform.python_version()},
               "yardstick": {"sha256": yardstick.file_hash(), "walls_s": yard,
                             "median_s": statistics.median(yard)},
               "steps": summary}

@@ -15,12 +15,11 @@ Usage: python benchmarks/grid.py [OUT] [--repeats N] [--capture-duration S]
 from __future__ import annotations
 
 import json
-import platform
 import statistics
 import sys
 from pathlib import Path
 
-from common import DEPLOYMENT_THREADS, Yardsticks, errors, output_dir, parser, timed
+from common import DEPLOYMENT_THREADS, Yardsticks, errors, machine, output_dir, parser, timed
 
 import bulletnet as bn
 
@@ -68,7 +67,7 @@ def main() -> None:
     out = output_dir(args)
     base = bn.load_scenario("deployment")
     yard = Yardsticks()
-    doc = {"machine": platform.processor() or platform.machine(),
+    doc = {"machine": machine(),
            "bulletnet_version": bn.__version__, "repeats": args.repeats, "cases": {}}
     references = {False: fine(base, out, False), True: fine(base, out, True)}
 

@@ -13,11 +13,10 @@ Usage: python benchmarks/scaling.py [OUT] [--repeats N] [--horizon S]
 from __future__ import annotations
 
 import json
-import platform
 import statistics
 
 import numpy as np
-from common import Yardsticks, output_dir, parser
+from common import Yardsticks, machine, output_dir, parser
 
 import bulletnet as bn
 from bulletnet.analysis.plots import _pyplot
@@ -30,7 +29,7 @@ def main() -> None:
     p.add_argument("--horizon", type=float, default=0.05, help="simulated time [s]")
     args = p.parse_args()
     out = output_dir(args)
-    doc = {"scene": "deployment", "machine": platform.machine(), "repeats": args.repeats,
+    doc = {"scene": "deployment", "machine": machine(), "repeats": args.repeats,
            "units": {"duration_s": "s", "wall_s": "s", "wall_per_simulated_s": "s/s"},
            "series": {}}
     yard = Yardsticks()

@@ -13,8 +13,6 @@ to the yardstick measured beside it. Writes ``OUT/user_commands.json``:
 from __future__ import annotations
 
 import json
-import os
-import platform
 import shlex
 import shutil
 import statistics
@@ -26,7 +24,7 @@ from pathlib import Path
 
 import h5py
 import yardstick
-from common import output_dir, parser
+from common import machine, output_dir, parser
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -90,8 +88,7 @@ def main() -> int:
     result = {"what": "the README's run lines as processes, kernels compiled; each beside a "
                       "timing of the frozen yardstick (benchmarks/yardstick.py)",
               "date": time.strftime("%Y-%m-%d %H:%M"),
-              "machine": {"cpus": os.cpu_count(), "processor": platform.processor(),
-                          "load_average_1min": os.getloadavg()[0]},
+              "machine": machine(),
               "yardstick": {"sha256": yardstick.file_hash(), "walls_s": yard,
                             "median_s": statistics.median(yard)},
               "commands": rows}

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import statistics
 import sys
 import tempfile
@@ -19,6 +18,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from common import machine  # noqa: E402
 
 from bulletnet.viewer import export_html, load_replay, viser_server  # noqa: E402
 from bulletnet.viewer.server import LiveViewer  # noqa: E402
@@ -84,7 +85,7 @@ def main() -> None:
     parser.add_argument("runs", nargs=2)
     parser.add_argument("--out", default="benchmarks/results/viewer.json")
     args = parser.parse_args()
-    doc = {"machine": f"{platform.node()}: shared 2-core machine, other jobs running",
+    doc = {"machine": machine(),
            "recordings": args.runs, "live": live(args.runs),
            "export": [export(args.runs, every) for every in (1, 5)]}
     Path(args.out).write_text(json.dumps(doc, indent=2))

@@ -157,6 +157,11 @@ class Engine(ABC):
         if self.integrator == EXPONENTIAL:
             self._set_damping()
 
+    def base_forces(self) -> np.ndarray:
+        """The forces that do not depend on the state, gravity, the model's loads and the
+        external forces, m g + load + external [N], shape (N, 3)."""
+        return self.model.mass[:, None] * self.gravity + self.model.load + self.external
+
     def between_steps(self, start: float, end: float) -> None:
         """Call the :attr:`step_hooks` before the steps from ``start`` to ``end`` [s] (engines
         call this between steps)."""
@@ -318,7 +323,7 @@ class Engine(ABC):
         # the forces alone, as a symplectic step takes them (not through `increment`, whose
         # implicit branch would be compiled once more for these arrays' layout: 10 s)
         integrators.external_forces(state.position, state.velocity, quat, omega, self.arrays,
-                                    work, self.gravity, self.external,
+                                    work, self.base_forces(),
                                     1.0 if self.bending else 0.0, False)
         integrators.symplectic_increment(state.position, state.velocity, self.arrays, work, 1.0)
         return work.tension.copy(), work.shear.copy()

@@ -130,12 +130,13 @@ class BulletEngine(Engine):
         first_step = self.steps
         for k in range(steps):
             self.between_steps(state.time + k * dt, state.time + (k + 1) * dt)
+            base = self.base_forces()  # after the hooks, which may change the external forces
             reel(state.position, self.arrays.cables,
                  state.time + (self.steps - first_step) * dt, dt)
             quat, omega = self.rotations(state)
             weight = integrators.bending_weight(self.bending, self.bending_every, w)
             increment(weight, state.position, state.velocity, quat, omega, self.arrays, w,
-                      self.gravity, self.external, dt, self.cg_tolerance)
+                      base, dt, self.cg_tolerance)
             track_threads(w.tension, self.peaks, 0)  # the step's own tensions
             track_cables(self.arrays.cables, self.peaks)
             force = w.dv * mass_over_dt

@@ -117,7 +117,7 @@ class FastEngine(Engine):
         if tow.enabled and tow.integrator and (tow.integrator == "implicit_euler") != self.implicit:
             groups["tow"] = [(integrators.advance(self.grid is not None, not self.implicit), (
                 self.bending_every, 1, pos, vel, quat, omega, self.arrays, self.step_work,
-                self.gravity, self.external, self.dt, self.cg_tolerance, self.contact_arrays,
+                self.base_forces(), self.dt, self.cg_tolerance, self.contact_arrays,
                 0.0, self.grid, self.views, self.breakage, self.peaks))]
         if self.grid is not None and self.bending:
             groups["bending"] = [(grid_kernels.bending, (self.grid, self.views,
@@ -130,11 +130,6 @@ class FastEngine(Engine):
                 (contact.contact_stage, (pos, vel, self.step_work.dv, a.mass, a.radius,
                                          a.fixed, contact_arrays, self.dt, 0.0))]
         return groups
-
-    def _base(self) -> np.ndarray:
-        """Gravity, the model's loads and the external forces, m g + load + external [N],
-        shape (N, 3): the grid's constant forces."""
-        return self.model.mass[:, None] * self.gravity + self.model.load + self.external
 
     def advance(self, state: NetState, t_end: float) -> None:
         interval = t_end - state.time
@@ -149,16 +144,19 @@ class FastEngine(Engine):
             self.rigid = RigidDebris(self.debris, state.debris)
         a = self.contact.arrays
         on_grid = self.grid is not None
+        base = self.base_forces()
         if on_grid:
-            grid_kernels.load(self.grid, state, self._base())
+            grid_kernels.load(self.grid, state, base)
         pos, vel, quat, omega = self._loop_arrays(state)
         free = self.free
         done = 0
         while done < steps:
             todo = min(chunk, steps - done)
             self.between_steps(state.time + done * dt, state.time + (done + todo) * dt)
-            if on_grid and self.step_hooks:  # a hook may have changed the external forces
-                grid_kernels.load_forces(self.grid, self._base())
+            if self.step_hooks:  # a hook may have changed the external forces
+                base = self.base_forces()
+                if on_grid:
+                    grid_kernels.load_forces(self.grid, base)
             if has_debris:
                 a.com[:], a.quat[0] = state.debris[COM], state.debris[QUAT]
                 a.velocity[:], a.omega[0] = state.debris[VELOCITY], state.debris[OMEGA]
@@ -172,7 +170,7 @@ class FastEngine(Engine):
             else:
                 taken = integrators.advance(on_grid, self.implicit)(
                     self.bending_every, todo, pos, vel, quat, omega, self.arrays,
-                    self.step_work, self.gravity, self.external, dt, self.cg_tolerance,
+                    self.step_work, base, dt, self.cg_tolerance,
                     self.contact_arrays, state.time + done * dt, self.grid, self.views,
                     self.breakage, self.peaks)
             if taken < todo:  # the self-contact list is full: grow it, go on

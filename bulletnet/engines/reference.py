@@ -60,7 +60,7 @@ class ReferenceEngine(Engine):
         pos, vel, quat, omega = self._split(y)
         # symplectic Euler's increment with dt = 1: dv is the acceleration [m/s^2]
         integrators.increment(False)(1.0 if self.bending else 0.0, pos, vel, quat, omega,
-                                     self.arrays, w, self.gravity, self.external, 1.0, 0.0)
+                                     self.arrays, w, self.base_forces(), 1.0, 0.0)
         parts = [vel * self._free, w.dv]
         if self.bending:
             alpha = w.torque / m.inertia[:, None] * self._free

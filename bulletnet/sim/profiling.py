@@ -90,8 +90,7 @@ def instrument(profile: Profile, engine, timed=()) -> None:
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _force_loop(steps, every, pos, vel, quat, omega, model, work, gravity, external, grid,
-                views, dt):
+def _force_loop(steps, every, pos, vel, quat, omega, model, work, base, grid, views, dt):
     """The force kernels of ``steps`` steps of ``dt`` [s] on a fixed state, bending on its
     schedule (``quat`` None: no bending): the grid's (``grid`` not None; pos and vel its
     views) or the pair list's."""
@@ -105,8 +104,7 @@ def _force_loop(steps, every, pos, vel, quat, omega, model, work, gravity, exter
                     grid_kernels.bending(grid, views, work.torque)
             grid_kernels.thread_forces(grid, views, dt)
         else:
-            external_forces(pos, vel, quat, omega, model, work, gravity, external, weight,
-                            False)
+            external_forces(pos, vel, quat, omega, model, work, base, weight, False)
             axial_forces(pos, vel, model.pairs, model.rest, model.rest_rate, model.k_a,
                          model.c_a, model.bilateral, work.force, work.tension)
         work.step_count[0] += 1
@@ -145,7 +143,7 @@ def step_split(engine, state: NetState) -> dict | None:
 
     def forces(steps):
         _force_loop(steps, engine.bending_every, pos, vel, quat, omega, engine.arrays, work,
-                    engine.gravity, engine.external, grid, views, engine.dt)
+                    engine.base_forces(), grid, views, engine.dt)
 
     flags = engine.contact.arrays.flags
     saved = flags.copy()

@@ -718,7 +718,7 @@ def _square_peaks(tension_e, rows, row, count, ns):
         col = t + ns
         square = tension_e[0, col] * tension_e[0, col] + tension_e[1, col] * tension_e[1, col] \
             + tension_e[2, col] * tension_e[2, col]
-        rows[row, col] = max(rows[row, col], square)
+        rows[row, col] = np.maximum(rows[row, col], square)  # not max(): masked stores
 
 
 @nb.njit(cache=True, error_model="numpy", _nrt=False)

@@ -113,7 +113,8 @@ class ModelArrays(NamedTuple):
     bilateral: bool
     """Whether the elements also resist compression."""
     inv_mass: np.ndarray
-    """1 / mass, 0 for clamped nodes [1/kg], shape (N,)."""
+    """1 / mass, 0 for clamped nodes [1/kg], shape (N, 3): each node's value in each
+    component, so that symplectic Euler's increment runs over the flat arrays (vectorized)."""
     radius: np.ndarray
     """Node sphere radii [m], shape (N,)."""
     rot_c: np.ndarray
@@ -151,7 +152,8 @@ def model_arrays(model: NetModel, cables: CableArrays | None = None,
         c_a=m.axial_damping, k_t=m.transverse_stiffness, c_t=m.transverse_damping,
         k_b=m.bending_stiffness, c_b=m.bending_damping, inertia=m.inertia,
         rest_axis=m.rest_axis, fixed=m.fixed, load=m.load, bilateral=m.bilateral,
-        inv_mass=np.where(m.fixed, 0.0, 1.0 / m.mass),  # clamped nodes: no velocity change
+        inv_mass=np.repeat(np.where(m.fixed, 0.0, 1.0 / m.mass)[:, None], 3, axis=1),  # clamped:
+        # no velocity change
         radius=m.radius, rot_c=rot_c, rot_k=rot_k,
         cables=cables if cables is not None and cables.rest.shape[0] else None, orbit=orbit,
         reel=reel, rest_rate=None if reel is None else np.zeros(m.thread_count))
@@ -239,22 +241,21 @@ def evaluate_bending(pos, vel, quat, omega, model, work):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def external_forces(pos, vel, quat, omega, model, work, gravity, external, bending_weight,
-                    hold):
-    """Gravity, loads, ``external`` [N] (N, 3) and the bending forces into work's force
-    (``quat``, ``omega``: the nodes' orientations (N, 4) and angular velocities [rad/s]
+def external_forces(pos, vel, quat, omega, model, work, base, bending_weight, hold):
+    """``base``, the forces that do not depend on the state (m g + load + external [N], (N, 3):
+    :meth:`bulletnet.engines.base.Engine.base_forces`), and the bending forces into work's
+    force (``quat``, ``omega``: the nodes' orientations (N, 4) and angular velocities [rad/s]
     (N, 3), or None without bending).
     With ``bending_weight`` w > 0 the bending springs are evaluated afresh first: their forces
     [N] into work's bend, their torques [N m] into work's torque, the threads' shear [N] into
     work's shear. The bending forces then enter as an impulse (w times, on this step only) or,
     with ``hold``, held (once on this and every step until the next evaluation)."""
-    mass, load, force, bend = model.mass, model.load, work.force, work.bend
     if bending_weight > 0.0:
         evaluate_bending(pos, vel, quat, omega, model, work)
     scale = 1.0 if hold else bending_weight  # (bend stays zero without bending)
-    for i in range(pos.shape[0]):
-        for a in range(3):
-            force[i, a] = mass[i] * gravity[a] + load[i, a] + external[i, a] + scale * bend[i, a]
+    force, base_e, bend = work.force.reshape(-1), base.reshape(-1), work.bend.reshape(-1)
+    for k in range(force.shape[0]):  # flat: vectorized
+        force[k] = base_e[k] + scale * bend[k]
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -363,15 +364,22 @@ def implicit_increment(pos, vel, model, work, dt, tol):
 def symplectic_increment(pos, vel, model, work, dt):
     """Velocity increment dv = dt F / m [m/s] of one symplectic Euler step, into work's dv.
     Work's force must hold the non-axial forces on entry (:func:`external_forces`)."""
-    inv_mass, force, dv = model.inv_mass, work.force, work.dv
     axial_forces(pos, vel, model.pairs, model.rest, model.rest_rate, model.k_a, model.c_a,
-                 model.bilateral, force, work.tension)
-    cable_forces(pos, vel, model.cables, force, False, dt)
-    orbit_forces(pos, vel, model.mass, model.orbit, force)
-    for i in range(pos.shape[0]):
-        h = dt * inv_mass[i]
-        for a in range(3):
-            dv[i, a] = h * force[i, a]
+                 model.bilateral, work.force, work.tension)
+    cable_forces(pos, vel, model.cables, work.force, False, dt)
+    orbit_forces(pos, vel, model.mass, model.orbit, work.force)
+    inv_mass, force, dv = model.inv_mass.reshape(-1), work.force.reshape(-1), work.dv.reshape(-1)
+    for k in range(dv.shape[0]):  # flat: vectorized
+        dv[k] = dt * inv_mass[k] * force[k]
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _move(pos, vel, dv, dt):
+    """v <- v + dv [m/s], x <- x + dt v [m] over the flat (N, 3) arrays (vectorized)."""
+    x, v, d = pos.reshape(-1), vel.reshape(-1), dv.reshape(-1)
+    for k in range(x.shape[0]):
+        v[k] += d[k]
+        x[k] += dt * v[k]
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -397,27 +405,27 @@ def bending_weight(bending, every, work):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def symplectic_step(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol):
+def symplectic_step(weight, pos, vel, quat, omega, model, work, base, dt, tol):
     """All forces at the state (bending with ``weight``), then symplectic Euler's velocity
     increment into work's dv; counts the step (``tol`` unused: the signature of
     :func:`implicit_step`)."""
-    external_forces(pos, vel, quat, omega, model, work, gravity, external, weight, False)
+    external_forces(pos, vel, quat, omega, model, work, base, weight, False)
     symplectic_increment(pos, vel, model, work, dt)
     work.step_count[0] += 1
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def implicit_step(weight, pos, vel, quat, omega, model, work, gravity, external, dt, tol):
+def implicit_step(weight, pos, vel, quat, omega, model, work, base, dt, tol):
     """All forces at the state (bending with ``weight``), then implicit Euler's velocity
     increment (CG to the relative residual ``tol``) into work's dv; counts the step."""
-    external_forces(pos, vel, quat, omega, model, work, gravity, external, weight, True)
+    external_forces(pos, vel, quat, omega, model, work, base, weight, True)
     implicit_increment(pos, vel, model, work, dt, tol)
     work.step_count[0] += 1
 
 
 def increment(implicit: bool):
-    """The compiled kernel ``(weight, pos, vel, quat, omega, model, work, gravity, external,
-    dt, tol)`` of one integrator: :func:`implicit_step` or :func:`symplectic_step` (each
+    """The compiled kernel ``(weight, pos, vel, quat, omega, model, work, base, dt, tol)`` of
+    one integrator: :func:`implicit_step` or :func:`symplectic_step` (each
     compiles only its own increment). Module-level functions, not closures: numba keys a
     closure's cache on its captured values, and a captured dispatcher pickles differently in
     every process, so a loop capturing one would compile anew in every run."""
@@ -426,8 +434,8 @@ def increment(implicit: bool):
 
 @functools.cache
 def advance(on_grid: bool, implicit: bool):
-    """The compiled loop ``(every, steps, pos, vel, quat, omega, model, work, gravity,
-    external, dt, tol, contact, t0, grid, views, breakage, peaks)`` of the grid's stencils
+    """The compiled loop ``(every, steps, pos, vel, quat, omega, model, work, base, dt, tol,
+    contact, t0, grid, views, breakage, peaks)`` of the grid's stencils
     (``on_grid``) or the pair-list kernels, with implicit Euler (``implicit``: CG to the
     relative residual ``tol``) or symplectic Euler. It takes up to ``steps`` steps in place
     on (pos, vel[, quat, omega]) from time ``t0`` [s]: the bending forces every ``every``
@@ -451,8 +459,8 @@ def advance(on_grid: bool, implicit: bool):
     warm start); either way the orientations are advanced once per interval
     (:func:`~bulletnet.kernels.bending.advance_rotation`). On the grid
     (:mod:`bulletnet.solver.grid`)
-    ``pos``, ``vel``, ``quat``, ``omega`` and work's dv are its ``views``, and gravity and
-    external have been loaded into its base (grid and views are None on the pair list).
+    ``pos``, ``vel``, ``quat``, ``omega`` and work's dv are its ``views``, and base (m g + load +
+    external [N], (N, 3)) has been loaded into its base (grid and views are None on the pair list).
 
     A scene compiles only the kernels it uses: ``on_grid`` and ``implicit`` are constants of
     the loop and a feature left out is None, and numba prunes those branches before typing
@@ -463,7 +471,7 @@ def advance(on_grid: bool, implicit: bool):
     method = IMPLICIT_EULER if implicit else SYMPLECTIC_EULER
 
     @nb.njit(cache=True, error_model="numpy")
-    def advance_loop(every, steps, pos, vel, quat, omega, model, work, gravity, external, dt,
+    def advance_loop(every, steps, pos, vel, quat, omega, model, work, base, dt,
                      tol, contact, t0, grid, views, breakage, peaks):
         n = pos.shape[0]
         mass, fixed, radius = model.mass, model.fixed, model.radius
@@ -492,15 +500,12 @@ def advance(on_grid: bool, implicit: bool):
                 work.step_count[0] += 1
             else:  # the increment's kernel named, not captured (see increment)
                 if implicit:
-                    implicit_step(weight, pos, vel, quat, omega, model, work, gravity,
-                                  external, dt, tol)
+                    implicit_step(weight, pos, vel, quat, omega, model, work, base, dt,
+                                  tol)
                 else:
-                    symplectic_step(weight, pos, vel, quat, omega, model, work, gravity,
-                                    external, dt, tol)
-                for i in range(n):
-                    for a in range(3):
-                        vel[i, a] += dv[i, a]
-                        pos[i, a] += dt * vel[i, a]
+                    symplectic_step(weight, pos, vel, quat, omega, model, work, base,
+                                    dt, tol)
+                _move(pos, vel, dv, dt)
             if contact is not None:
                 contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t0 + k * dt)
             if quat is not None:
