@@ -106,8 +106,9 @@ def main() -> None:
                                            "scene.duration": args.capture_duration})
     cap = {}
     for kernels in ("pairs", "grid"):
-        wall, _, result = timed(capture.with_overrides({"simulation.kernels": kernels}),
-                                out / f"capture_{kernels}.h5")
+        scene = capture.with_overrides({"simulation.kernels": kernels})
+        bn.run(scene.with_overrides({"scene.duration": 0.01}), out / "warm.h5", force=True)
+        wall, _, result = timed(scene, out / f"capture_{kernels}.h5")  # compiled: timed alone
         cap[kernels] = {"wall_s": wall, "steps": result.stats["steps"], **yard.ratios(wall)}
     cap["grid_speedup_over_pairs"] = cap["pairs"]["wall_s"] / cap["grid"]["wall_s"]
     doc["capture_bending"] = {"duration_s": args.capture_duration, **cap}
