@@ -187,8 +187,8 @@ class PairSystemAt(At):
         a, w = e.arrays, e.step_work
         warm, before = w.dv.copy(), int(w.cg_iterations[0])
         quat, omega = e.rotations(s)  # the bending forces held, as the loop holds them
-        integrators.external_forces(s.position, s.velocity, quat, omega, a, w, e.gravity,
-                                    e.external, 0.0, True)
+        integrators.external_forces(s.position, s.velocity, quat, omega, a, w,
+                                    e.base_forces(), 0.0, True)
         integrators.implicit_increment(s.position, s.velocity, a, w, e.dt, e.cg_tolerance)
         system = integrators.PairSystem(a.mass, a.fixed, a.pairs, w.along, w.across, w.axis,
                                         w.block_inv, a.cables)

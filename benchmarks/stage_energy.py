@@ -83,8 +83,8 @@ class StageAudit(Observer):
                 energies.append(sum(net_energy(a, pos, vel)))
                 winch = (a.cables.work.sum() if a.cables is not None else 0.0) - winch
                 start = pos.copy()
-                integrators.implicit_step(0.0, pos, vel, None, None, a, w, e.gravity,
-                                          e.external, dt, e.cg_tolerance)
+                integrators.implicit_step(0.0, pos, vel, None, None, a, w, e.base_forces(),
+                                          dt, e.cg_tolerance)
                 vel += w.dv
                 pos += dt * vel
                 work = float(np.einsum("na,na->", e.external + a.load, pos - start))

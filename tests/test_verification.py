@@ -44,8 +44,8 @@ def pull_apart(model: NetModel, method: str, dt: float, t_end: float, v0: float 
     lengths = np.empty(steps)
     loop = integrators.advance(False, method == "implicit_euler")  # the pair-list kernels
     for s in range(steps):  # no bending, no contact
-        loop(1, 1, pos, vel, None, None, integrators.model_arrays(model), w, np.zeros(3),
-             np.zeros((2, 3)), dt, 1e-12, None, s * dt, None, None, None, None)
+        loop(1, 1, pos, vel, None, None, integrators.model_arrays(model), w, np.zeros((2, 3)),
+             dt, 1e-12, None, s * dt, None, None, None, None)
         lengths[s] = pos[1, 0] - pos[0, 0]
     return lengths, vel[1, 0] - vel[0, 0]
 
