@@ -40,6 +40,9 @@ class ReferenceEngine(Engine):
         super().__init__(scenario, model)
         self._solver = None
         self._free = ~model.fixed[:, None]
+        self._base = self.base_forces()
+        """The forces that do not depend on the state [N], (N, 3), as :meth:`advance` last
+        found them (nothing changes them while it integrates: this engine calls no hooks)."""
 
     @property
     def integrator(self) -> str:
@@ -60,7 +63,7 @@ class ReferenceEngine(Engine):
         pos, vel, quat, omega = self._split(y)
         # symplectic Euler's increment with dt = 1: dv is the acceleration [m/s^2]
         integrators.increment(False)(1.0 if self.bending else 0.0, pos, vel, quat, omega,
-                                     self.arrays, w, self.base_forces(), 1.0, 0.0)
+                                     self.arrays, w, self._base, 1.0, 0.0)
         parts = [vel * self._free, w.dv]
         if self.bending:
             alpha = w.torque / m.inertia[:, None] * self._free
@@ -71,6 +74,7 @@ class ReferenceEngine(Engine):
         from scipy.integrate import DOP853
 
         sim = self.scenario.simulation
+        self._base = self.base_forces()  # once, not at every evaluation of the right-hand side
         if self._solver is None:
             parts = [state.position, state.velocity]
             if self.bending:

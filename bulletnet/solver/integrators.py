@@ -152,8 +152,8 @@ def model_arrays(model: NetModel, cables: CableArrays | None = None,
         c_a=m.axial_damping, k_t=m.transverse_stiffness, c_t=m.transverse_damping,
         k_b=m.bending_stiffness, c_b=m.bending_damping, inertia=m.inertia,
         rest_axis=m.rest_axis, fixed=m.fixed, load=m.load, bilateral=m.bilateral,
-        inv_mass=np.repeat(np.where(m.fixed, 0.0, 1.0 / m.mass)[:, None], 3, axis=1),  # clamped:
-        # no velocity change
+        # clamped nodes: no velocity change
+        inv_mass=np.repeat(np.where(m.fixed, 0.0, 1.0 / m.mass)[:, None], 3, axis=1),
         radius=m.radius, rot_c=rot_c, rot_k=rot_k,
         cables=cables if cables is not None and cables.rest.shape[0] else None, orbit=orbit,
         reel=reel, rest_rate=None if reel is None else np.zeros(m.thread_count))
