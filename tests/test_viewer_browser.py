@@ -120,13 +120,14 @@ def test_exported_html_draws_plays_and_steps(browser, runs, empty_scene):
     wait_for(lambda: np.min(np.abs(times - slider_value(page))) < 1e-6, 10,
              "a step to a recorded frame")
     k = int(np.argmin(np.abs(times - slider_value(page))))
+    # the step lands wherever playback was, the last frame included: a step past it stays there
+    j = min(k + 1, times.size - 1)
     page.click("#bulletnet-next")
-    wait_for(lambda: abs(slider_value(page) - times[min(k + 1, times.size - 1)]) < 1e-6, 10,
-             "the next frame")
-    wait_for(lambda: page.text_content("#time-label") ==
-             f"t = {replay.time[min(k + 1, times.size - 1)]:.3f} s", 5, "the panel's time")
+    wait_for(lambda: abs(slider_value(page) - times[j]) < 1e-6, 10, "the next frame")
+    wait_for(lambda: page.text_content("#time-label") == f"t = {replay.time[j]:.3f} s", 5,
+             "the panel's time")
     page.click("#bulletnet-prev")
-    wait_for(lambda: abs(slider_value(page) - times[k]) < 1e-6, 10, "the previous frame")
+    wait_for(lambda: abs(slider_value(page) - times[j - 1]) < 1e-6, 10, "the previous frame")
     net_drawn(page)
     assert errors == []
 
