@@ -75,7 +75,7 @@ def test_no_import_cycles():
 
 
 RANKS = {
-    "common": 0,     # errors, package data, numba's cache folder
+    "common": 0,     # errors, package data, numba's cache folder, stop requests
     "kernels": 1,    # compiled leaves: thread, bending, cable forces, contact laws, geometry
     "model": 2,      # scene file -> topology, net model, state, debris, meshes, materials
     "solver": 3,     # one step and the compiled loop, the contact stage

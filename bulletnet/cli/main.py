@@ -10,11 +10,11 @@ import argparse
 import contextlib
 import json
 import math
-import signal
 import sys
 import threading
 import time
 
+from ..common import interrupt
 from ..common.errors import BulletnetError, ScenarioError
 
 SI_HELP = "all quantities in SI units; see `bulletnet params SCENE`"
@@ -920,10 +920,6 @@ def cmd_view(args) -> int:
     return 0
 
 
-def _terminate(signum, frame):
-    raise KeyboardInterrupt
-
-
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = {"run": cmd_run, "scenes": cmd_scenes, "scene": cmd_scene, "warmup": cmd_warmup,
@@ -931,7 +927,7 @@ def main(argv: list[str] | None = None) -> int:
                "plot": cmd_plot, "view": cmd_view,
                "bench": cmd_bench, "stability": cmd_stability,
                "sweep": cmd_sweep, "study": cmd_study, "optimize": cmd_optimize}[args.command]
-    signal.signal(signal.SIGTERM, _terminate)
+    interrupt.install()  # Ctrl-C and SIGTERM: the run keeps its frames, marked interrupted
     try:
         return handler(args)
     except BulletnetError as exc:

@@ -1,1 +1,1 @@
-"""Leaves every layer uses: errors, package data, numba's cache."""
+"""Leaves every layer uses: errors, package data, numba's cache, stop requests."""

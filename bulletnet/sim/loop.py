@@ -16,6 +16,7 @@ import numpy as np
 
 from ..analysis.capture_score import ScoreGeometry, interior_samples
 from ..analysis.stability import Limits, analytical_limits
+from ..common import interrupt
 from ..common.errors import BulletnetError, DivergenceError, ScenarioError
 from ..engines import make_engine
 from ..model.builder import build_model, initial_state
@@ -203,11 +204,13 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
                 raise _divergence(reason, state, engine.dt, engine.integrator,
                                   analytical_limits(model, start_position,
                                                     scenario.bending.enabled))
+            interrupt.check()  # a stop request the signal's own exception lost
             stop = take_frame()
             if progress is not None:
                 progress(state.time, scenario.scene.duration, _time.perf_counter() - start)
         status = "completed"
     except KeyboardInterrupt as exc:
+        interrupt.acted()
         status, message, error = "interrupted", "interrupted by the user", exc
     except DivergenceError as exc:
         status, message, error = "diverged", str(exc), exc

@@ -7,6 +7,7 @@ from __future__ import annotations
 import threading
 import time
 
+from ..common import interrupt
 from .panel import Panel, TowPanel
 from .replay import CHASER_SIZE, FAILED, SLACK, STUB, THRUST_LENGTH, Replay
 from .scene import THRUST, build_scene, viser_server
@@ -186,6 +187,7 @@ def serve(replay: Replay, port: int = 8080, snapshots: list[float] | None = None
         stop = stop or threading.Event()
         last = time.monotonic()
         while not stop.wait(TICK):
+            interrupt.check()  # a stop request the signal's own exception lost
             now = time.monotonic()
             viewer.tick(now - last)
             last = now
