@@ -347,11 +347,12 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
             first[0] = t + dt
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", _nrt=True)
 def build_pairs(pos, radius, contact):
     """Rebuild the Verlet list of node pairs closer than their radii plus the skin (sweep
     along x; nodes without contact left out). Returns False if the list's capacity is too
-    small."""
+    small. Compiled with reference counting (``_nrt=True``), which the loop that calls it
+    goes without: its sort allocates."""
     skin = contact.params[1]
     pairs, meta, ref = contact.pairs, contact.pair_meta, contact.build_position
     cls = contact.node_class

@@ -466,11 +466,19 @@ def advance(on_grid: bool, implicit: bool):
     the loop and a feature left out is None, and numba prunes those branches before typing
     (a net without bending compiles no bending kernel, a deployment no contact stage); a
     free net on the grid (no bending, contact or cables) takes
-    :func:`bulletnet.solver.grid.free_steps` and compiles none of this loop."""
+    :func:`bulletnet.solver.grid.free_steps` and compiles none of this loop.
+
+    The loop is compiled without numba's reference counting (``_nrt=False``), as the grid
+    kernels are, and so are the kernels it calls (they inherit the setting unless they set
+    it): with it, every step counted references to the arrays each kernel takes, a call and
+    an atomic increment or decrement each (over a hundred call sites in the pair list's step,
+    read with ``inspect_asm``), and the pair list's deployment step took 1.24-1.70 plain loops
+    (``benchmarks/yardstick.py``) against 1.05-1.10 without. Nothing in it allocates; a
+    kernel that does (the Verlet list's sort) says ``_nrt=True``."""
     hold = 1.0 if implicit else 0.0  # bending held over the interval, or an impulse
     method = IMPLICIT_EULER if implicit else SYMPLECTIC_EULER
 
-    @nb.njit(cache=True, error_model="numpy")
+    @nb.njit(cache=True, error_model="numpy", _nrt=False)
     def advance_loop(every, steps, pos, vel, quat, omega, model, work, base, dt,
                      tol, contact, t0, grid, views, breakage, peaks):
         n = pos.shape[0]
