@@ -29,8 +29,13 @@ CASES = {
                                    "simulation.integrator": "implicit_euler"},
     "deployment_bending_ie_4e-5": {"bending.enabled": True, "simulation.dt": 4e-5,
                                    "simulation.integrator": "implicit_euler"},
+    "deployment_bending_ie_8e-5": {"bending.enabled": True, "simulation.dt": 8e-5,
+                                   "simulation.integrator": "implicit_euler"},
 }
-"""The deployment cases: scene overrides of the 3 s deployment."""
+"""The deployment cases: scene overrides of the 3 s deployment. With bending, implicit Euler's
+error against the converged run grows slowly with its step (average RMSE 0.49, 0.67, 0.83,
+1.03 mm at 4e-5, 6e-5, 8e-5, 1e-4 s on 2026-12-03): 8e-5 s is the largest of these within
+1 mm."""
 
 SCALING_SIDES = (11, 21, 41, 81)
 """Net sizes Ns of the scaling runs (symplectic Euler, 1e-6 s, SCALING_STEPS steps)."""
