@@ -52,6 +52,12 @@ def fine(base, out, bending: bool):
     return bn.open_recording(path)
 
 
+def compile_first(scene, out, duration: float) -> None:
+    """Run ``scene`` for ``duration`` [s] into OUT/warm.h5, so that its kernels are compiled
+    before it is timed."""
+    bn.run(scene.with_overrides({"scene.duration": duration}), out / "warm.h5", force=True)
+
+
 def interleaved(scenes: dict, out, repeats: int, yard: Yardsticks) -> dict:
     """Wall times [s] of each named scene, run in turn REPEATS times after the plain loop:
     name -> list."""
@@ -82,7 +88,7 @@ def main() -> None:
             scenes[f"{name}_{kernels}"] = base.with_overrides(
                 {**overrides, "simulation.kernels": kernels})
     for scene in scenes.values():  # compile every kernel before timing
-        bn.run(scene.with_overrides({"scene.duration": 0.001}), out / "warm.h5", force=True)
+        compile_first(scene, out, 0.001)
     walls = interleaved(scenes, out, args.repeats, yard)
     doc["yardsticks"] = yard.doc()
     steps = round(base.scene.duration / 1e-6)  # the plain deployment's steps: the bound's work
@@ -112,7 +118,7 @@ def main() -> None:
     cap = {}
     for kernels in ("pairs", "grid"):
         scene = capture.with_overrides({"simulation.kernels": kernels})
-        bn.run(scene.with_overrides({"scene.duration": 0.01}), out / "warm.h5", force=True)
+        compile_first(scene, out, 0.01)
         wall, _, result = timed(scene, out / f"capture_{kernels}.h5")  # compiled: timed alone
         cap[kernels] = {"wall_s": wall, "steps": result.stats["steps"], **yard.ratios(wall)}
     cap["grid_speedup_over_pairs"] = cap["pairs"]["wall_s"] / cap["grid"]["wall_s"]
@@ -125,7 +131,7 @@ def main() -> None:
         scene = base.with_overrides({"net.nodes_per_side": ns,
                                      "scene.duration": SCALING_STEPS * 1e-6,
                                      "simulation.record_rate": 1.0 / (SCALING_STEPS * 1e-6)})
-        bn.run(scene.with_overrides({"scene.duration": 1e-5}), out / "warm.h5", force=True)
+        compile_first(scene, out, 1e-5)
         wall, _, _ = timed(scene, out / "scaling.h5", args.repeats)
         nodes = ns * ns + 4
         scaling.append({"nodes_per_side": ns, "nodes": nodes,
