@@ -78,11 +78,9 @@ def solve(apply, factor, precondition, components, system, dv, r, z, d, ad, mass
                                  ad.reshape(-1))
     size = nb.uint64(r_e.shape[0])
     m0 = m1 = m2 = 0.0  # the step's exact momentum change: sum of dt F (internal forces cancel)
-    for i in range(n):
+    for i in range(n):  # three sums in node order, their dependency chains interleaved
         m0 += r_n[0, i]
-    for i in range(n):
         m1 += r_n[1, i]
-    for i in range(n):
         m2 += r_n[2, i]
     rhs_norm = np.sqrt(_dot(r_n, r_n, n))
     if rhs_norm == 0.0:
