@@ -351,8 +351,8 @@ def debris_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
 def build_pairs(pos, radius, contact):
     """Rebuild the Verlet list of node pairs closer than their radii plus the skin (sweep
     along x; nodes without contact left out). Returns False if the list's capacity is too
-    small. Compiled with reference counting (``_nrt=True``), which the loop that calls it
-    goes without: its sort allocates."""
+    small. Compiled with reference counting (``_nrt=True``), which the step loop that calls
+    it goes without: its sort allocates."""
     skin = contact.params[1]
     pairs, meta, ref = contact.pairs, contact.pair_meta, contact.build_position
     cls = contact.node_class
@@ -479,10 +479,13 @@ def self_stage(pos, vel, dv, mass, radius, contact, dt, t):
             first[1] = t + dt
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", _nrt=True)
 def contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t):
     """Self-contact, debris contact (sequentially, or together with the coupled solve:
-    ``contact.solve``), then the debris' rigid motion over the step (constant velocity)."""
+    ``contact.solve``), then the debris' rigid motion over the step (constant velocity).
+    Compiled with reference counting (``_nrt=True``), as are the stages it calls, whatever
+    the caller: they allocate small scratch vectors, and the step loop that calls it goes
+    without (:func:`bulletnet.solver.integrators.advance`)."""
     _stages(pos, vel, dv, mass, radius, fixed, contact, contact.solve, dt, t)
 
 

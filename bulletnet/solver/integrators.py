@@ -474,7 +474,9 @@ def advance(on_grid: bool, implicit: bool):
     an atomic increment or decrement each (over a hundred call sites in the pair list's step,
     read with ``inspect_asm``), and the pair list's deployment step took 1.24-1.70 plain loops
     (``benchmarks/yardstick.py``) against 1.05-1.10 without. Nothing in it allocates; a
-    kernel that does (the Verlet list's sort) says ``_nrt=True``."""
+    kernel that does says ``_nrt=True`` (the Verlet list's build, the contact stage), or
+    compiling the loop fails: which kernels inherit the setting must not depend on which
+    was compiled first."""
     hold = 1.0 if implicit else 0.0  # bending held over the interval, or an impulse
     method = IMPLICIT_EULER if implicit else SYMPLECTIC_EULER
 
