@@ -5,7 +5,8 @@ wherever that thread is. A KeyboardInterrupt raised there inside a weakref callb
 ``__del__`` method is printed ("Exception ignored in ...") and dropped, and a run would go on
 to its end as if nothing had been asked. The CLI's handler (:func:`install`) therefore also
 records the request, and the loops that last (the run loop at every frame, the replay server
-at every tick) call :func:`check`, which raises it again if it was lost.
+at every tick) call :func:`check`, which raises it again if it was lost; the dropped one is
+not printed (it is acted upon).
 """
 
 from __future__ import annotations
