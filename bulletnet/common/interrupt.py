@@ -29,15 +29,18 @@ def _quiet_if_recorded(previous):
     def hook(info):
         if not (_pending and isinstance(info.exc_value, KeyboardInterrupt)):
             previous(info)
+    hook.quiets_stop_requests = True
     return hook
 
 
 def install() -> None:
     """Make SIGINT and SIGTERM raise KeyboardInterrupt and record the request (the CLI's
-    handlers; call from the main thread)."""
+    handlers; call from the main thread). Installing again (``main`` called twice in one
+    process) does not wrap the hook again."""
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _handler)
-    sys.unraisablehook = _quiet_if_recorded(sys.unraisablehook)
+    if not getattr(sys.unraisablehook, "quiets_stop_requests", False):
+        sys.unraisablehook = _quiet_if_recorded(sys.unraisablehook)
 
 
 def check() -> None:
