@@ -5,7 +5,7 @@ closing capture (``scenarios/capture_closing.toml``, at ``--closing-at``) run to
 snapshot; there, on the grid path and inside compiled loops (no Python call between calls):
 
 1. the CG iterations a step of the run so far, and each part of a CG iteration, called
-   ``CALLS`` times on the snapshot's vectors: the product A d, the preconditioner's factor
+   5000 times on the snapshot's vectors: the product A d, the preconditioner's factor
    (once a step), the preconditioning, the dot products (node by node, in node order: one
    sequential chain of additions each), the vector updates (best of 5 loops);
 2. two bounds measured beside them: the memory bandwidth of a triad over arrays as large as
@@ -29,18 +29,14 @@ Also the frozen yardstick, timed at the start and the end. Writes ``OUT/cg_step.
 from __future__ import annotations
 
 import json
-import time
 
 import numba as nb
 import numpy as np
-from common import At, Yardsticks, machine, output_dir, parser
+from common import At, Yardsticks, best_us, machine, output_dir, parser
 
 import bulletnet as bn
 from bulletnet.solver import grid as G
 from bulletnet.solver import integrators, pcg
-
-CALLS = 5000
-"""Calls of a part in one timed loop [-]."""
 
 PASS_ROWS = {"product": 35, "preconditioning": 15, "dot_d_ad": 6, "updates": 27,
              "dots_rz_rr": 6}
@@ -122,17 +118,6 @@ def _sums(a, count, calls):
 
 _chain = nb.njit(error_model="numpy")(_sums)
 _reordered = nb.njit(error_model="numpy", fastmath={"reassoc"})(_sums)
-
-
-def best_us(call, calls: int = CALLS) -> float:
-    """Best of 5 timed loops of ``call(calls)``, per call [us] (one untimed warm-up call)."""
-    call(2)
-    best = float("inf")
-    for _ in range(5):
-        start = time.perf_counter()
-        call(calls)
-        best = min(best, (time.perf_counter() - start) / calls)
-    return 1e6 * best
 
 
 def bounds(working_set_bytes: int, count: int) -> dict:

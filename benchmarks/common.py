@@ -17,8 +17,8 @@ import bulletnet as bn
 from bulletnet.sim.observers import Observer
 from bulletnet.studies.bench import ERROR_KEYS, rmse_measure, timed
 
-__all__ = ["ERROR_KEYS", "At", "Yardsticks", "errors", "machine", "output_dir", "parser",
-           "timed"]
+__all__ = ["ERROR_KEYS", "At", "Yardsticks", "best_us", "errors", "machine", "output_dir",
+           "parser", "timed"]
 
 DEPLOYMENT_THREADS = 2 * 11 * 10 + 4
 """Threads of the paper's Ns = 11 net (the yardstick's) [-]."""
@@ -68,6 +68,17 @@ def sqrt_division_bound(threads: int = DEPLOYMENT_THREADS, repeats: int = 200000
         kernel(x, y, z, out, repeats)
         best = min(best, (time.perf_counter() - start) / repeats / threads)
     return 1e9 * best
+
+
+def best_us(call, calls: int = 5000) -> float:
+    """Best of 5 timed loops of ``call(calls)``, per call [us] (one untimed warm-up call)."""
+    call(2)
+    best = float("inf")
+    for _ in range(5):
+        start = time.perf_counter()
+        call(calls)
+        best = min(best, (time.perf_counter() - start) / calls)
+    return 1e6 * best
 
 
 class Yardsticks:

@@ -406,12 +406,17 @@ def _net_force(grid, a, i, ns, bending_scale):
     return _neighbours(start, grid.th, grid.tv, a, i, ns, 1.0) + grid.other[a, i]
 
 
-@nb.njit(cache=True, error_model="numpy", _nrt=False)
+@nb.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def symplectic_step(grid, views, dt, bending_scale, increment):
     """One symplectic Euler step of every node: :func:`thread_forces`, then dv = dt F / m with
     F = :func:`_net_force`, v <- v + dv, x <- x + dt v, in one pass over the rows (padding
     columns included: they have no force and no mass, and stay at rest); dv is kept in its
-    rows only with ``increment`` (the contact stage reads it)."""
+    rows only with ``increment`` (the contact stage reads it).
+
+    Inlined into the loops that call it, as :func:`track_peaks` is: a call passes the grid's
+    arrays field by field (195 words pushed on the stack, read with ``inspect_asm``) and the
+    callee reads them afresh, every step; the plain deployment's ~1 us step took 0.76-0.83
+    of its time inlined (benchmarks/grid_step.py, docs/speed.md)."""
     ns, length = U(grid.ns), U(grid.x.shape[1])
     x, v, dv, inv_mass = grid.x, grid.v, grid.dv, grid.inv_mass
     thread_forces(grid, views, dt)
@@ -721,7 +726,7 @@ def _square_peaks(tension_e, rows, row, count, ns):
         rows[row, col] = np.maximum(rows[row, col], square)  # not max(): masked stores
 
 
-@nb.njit(cache=True, error_model="numpy", _nrt=False)
+@nb.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def track_peaks(grid, peaks):
     """Each element's running maximum of its tension (:mod:`bulletnet.kernels.peaks`) after a
     step on the grid: a grid thread's squared |T e| (th, tv: the step's own, as

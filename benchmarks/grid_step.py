@@ -1,0 +1,218 @@
+"""Where the plain deployment's grid step goes, against the machine's own bounds.
+
+The 3 s deployment (``scenarios/deployment.toml``: symplectic Euler at 1e-6 s, the grid
+path, its threads' running maxima kept) runs to ``--at``; there, inside compiled loops on
+that state (best of 5 loops of 200 000 calls each, in ``--rounds`` interleaved rounds):
+
+1. the step as the run takes it (:func:`bulletnet.solver.grid.free_steps` with the peaks)
+   and its passes: the two tension stencils, the node pass (each node's forces summed in the
+   pair list's order, then v and x updated), the running maxima and the four corner threads
+   (pair-list kernels);
+2. the stencils' work built up, over the same threads and rows: (a) the sqrt and reciprocal
+   of each thread's length alone, one row stored (the bound's arithmetic on the stencils'
+   shifted rows); (b) the whole tension law (velocities and parameters loaded, direction,
+   rate, Eq. 3), T alone stored; (c) the stencils themselves (T e into three rows);
+3. the bounds beside them: the sqrt/division bound (``common.sqrt_division_bound``, ns a
+   thread) and the bandwidth of a triad over arrays as large as the rows the step touches
+   (its working set, :func:`working_set`), which with the bytes the step's passes read and
+   write (counted in :data:`PASS_BYTES`) gives the step's traffic floor.
+
+Also the frozen yardstick, once a round (its step: its wall time over its 3e6 steps).
+Writes ``OUT/grid_step.json``:
+
+    python benchmarks/grid_step.py benchmarks/results [--at 1.0] [--rounds 3]
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+
+import numba as nb
+import numpy as np
+from common import (
+    DEPLOYMENT_THREADS,
+    At,
+    Yardsticks,
+    best_us,
+    machine,
+    output_dir,
+    parser,
+    sqrt_division_bound,
+)
+
+import bulletnet as bn
+from bulletnet.solver import grid as G
+from bulletnet.solver.grid import ONE, U
+
+CALLS = 200_000
+"""Calls of a pass in one timed loop [-]."""
+
+PASS_BYTES = {"stencils": 18, "node_pass": 12, "peaks": 5}
+"""Doubles each pass reads plus writes per thread (the stencils: both nodes' x and v, rest,
+k, c; T e written; the peaks: T e and the running maximum read, it written) or per node
+component (the node pass: base, bend, other, 1/m, four threads' T e, v and x read; v, x
+written)."""
+
+
+@nb.njit(error_model="numpy", inline="always")
+def _sqrt_reciprocal(x, off, out, count, ns):
+    """The bound's arithmetic on a stencil's rows: each thread's length and its reciprocal."""
+    for t in range(count):
+        j = t + off
+        length = np.sqrt((x[0, j] - x[0, t]) ** 2 + (x[1, j] - x[1, t]) ** 2
+                         + (x[2, j] - x[2, t]) ** 2)
+        out[0, t + ns] = 1.0 / length + length
+
+
+@nb.njit(error_model="numpy", inline="always")
+def _tension_only(x, v, off, rest, k, c, out, count, ns):
+    """The whole tension law of a stencil's threads, T alone stored."""
+    for t in range(count):
+        out[0, t + ns] = G._row_tension(x, v, t, t + off, rest, k, c)[0]
+
+
+@nb.njit(error_model="numpy", _nrt=False)
+def _probe(g, level, calls):
+    """``calls`` times both stencils' work up to ``level`` (0: sqrt and reciprocal, 1: the
+    tension law, 2: the stencils), into the th and tv rows."""
+    ns, x, v = U(g.ns), g.x, g.v
+    h, w = U(g.h_rest.shape[0]), U(g.v_rest.shape[0])
+    for _ in range(calls):
+        if level == 0:
+            _sqrt_reciprocal(x, ONE, g.th, h, ns)
+            _sqrt_reciprocal(x, ns, g.tv, w, ns)
+        elif level == 1:
+            _tension_only(x, v, ONE, g.h_rest, g.h_k, g.h_c, g.th, h, ns)
+            _tension_only(x, v, ns, g.v_rest, g.v_k, g.v_c, g.tv, w, ns)
+        else:
+            G._tension_stencil(x, v, ONE, g.h_rest, g.h_k, g.h_c, g.th, h, ns)
+            G._tension_stencil(x, v, ns, g.v_rest, g.v_k, g.v_c, g.tv, w, ns)
+
+
+@nb.njit(error_model="numpy", _nrt=False)
+def _node_pass(g, dt, calls):
+    """``calls`` node passes of the free step (bending_scale 0, no increment kept)."""
+    ns, length, x, v, inv_mass = U(g.ns), U(g.x.shape[1]), g.x, g.v, g.inv_mass
+    for _ in range(calls):
+        for a in range(U(3)):
+            for i in range(length):
+                v[a, i] += dt * inv_mass[i] * G._net_force(g, a, i, ns, 0.0)
+                x[a, i] += dt * v[a, i]
+
+
+@nb.njit(error_model="numpy", _nrt=False)
+def _peaks(g, peaks, calls):
+    for _ in range(calls):
+        G.track_peaks(g, peaks)
+
+
+@nb.njit(error_model="numpy", _nrt=False)
+def _others(g, views, dt, calls):
+    for _ in range(calls):
+        G._other_threads(g, views, dt, False)
+
+
+@nb.njit(error_model="numpy")
+def _triad(a, b, c, calls):
+    for _ in range(calls):
+        for i in range(a.shape[0]):
+            a[i] = b[i] + 1e-300 * c[i]
+
+
+def working_set(g, peaks) -> int:
+    """Bytes of the rows a free step reads or writes: x, v, base, bend, other, 1/m, the
+    threads' T e and parameters, the running maxima."""
+    rows = (g.x, g.v, g.base, g.bend, g.other, g.inv_mass, g.th, g.tv, g.h_rest, g.h_k,
+            g.h_c, g.v_rest, g.v_k, g.v_c, peaks.rows)
+    return sum(r.nbytes for r in rows)
+
+
+class StepParts(At):
+    """At the first frame at or after ``at`` [s]: the step, its passes, the stencil probes
+    and the bounds, ``rounds`` times interleaved (see the module doc); then stops the run."""
+
+    def __init__(self, at: float, rounds: int, yard: Yardsticks):
+        super().__init__(at)
+        self.rounds, self.yard = rounds, yard
+
+    def act(self, e, state):
+        g, views, peaks, dt = e.grid, e.views, e.peaks, e.dt
+        G.load(g, state, e.base_forces())
+        x0, v0 = g.x.copy(), g.v.copy()
+        loop = G.free_steps(False)
+
+        def fresh(call):  # every timed loop starts from the snapshot (the steps move it)
+            def timed_call(calls):
+                g.x[:], g.v[:] = x0, v0
+                call(calls)
+            return timed_call
+
+        parts = {
+            "step": fresh(lambda k: loop(g, views, k, dt, 0.0, e.work.cg_iterations, peaks)),
+            "stencils": lambda k: _probe(g, 2, k),
+            "node_pass": fresh(lambda k: _node_pass(g, dt, k)),
+            "peaks": lambda k: _peaks(g, peaks, k),
+            "other_threads": lambda k: _others(g, views, dt, k),
+            "probe_sqrt_reciprocal": lambda k: _probe(g, 0, k),
+            "probe_tension_law": lambda k: _probe(g, 1, k),
+        }
+        rows = 3 * g.x.shape[1]  # node components in the node pass
+        threads = g.h_rest.shape[0] + g.v_rest.shape[0]
+        traffic = 8 * (threads * (PASS_BYTES["stencils"] + PASS_BYTES["peaks"])
+                       + rows * PASS_BYTES["node_pass"])
+        n = max(working_set(g, peaks) // 24, 256)
+        a, b, c = (np.random.default_rng(k).random(n) for k in range(3))
+        parts["triad"] = lambda k: _triad(a, b, c, k)
+        times = {name: [] for name in parts}
+        bounds = []
+        for _ in range(self.rounds):
+            self.yard.time()
+            bounds.append(1e-3 * sqrt_division_bound(threads=DEPLOYMENT_THREADS)
+                          * DEPLOYMENT_THREADS)
+            for name, call in parts.items():
+                times[name].append(best_us(call, CALLS // 10 if name == "triad" else CALLS))
+        g.x[:], g.v[:] = x0, v0
+        us = {name: statistics.median(t) for name, t in times.items()}
+        bound = statistics.median(bounds)
+        bandwidth = 24 * n / us.pop("triad") * 1e-3
+        plain = 1e6 * statistics.median(self.yard.walls) / 3e6
+        return {
+            "t_s": state.time, "threads": threads, "node_rows": rows,
+            "us": us, "us_all": times,
+            "sqrt_division_bound_us_per_step": bound, "bound_us_all": bounds,
+            "x_bound": {name: t / bound for name, t in us.items()},
+            "plain_loop_us_per_step": plain,
+            "x_plain_loop": {name: t / plain for name, t in us.items()},
+            "step_bytes": traffic, "working_set_bytes": working_set(g, peaks),
+            "triad_arrays_bytes": 24 * n,
+            "bandwidth_GB_s": bandwidth, "traffic_floor_us": traffic / bandwidth * 1e-3,
+            "target_us": 2.5 * bound}
+
+
+def main() -> int:
+    p = parser(__doc__.split("\n\n")[0])
+    p.add_argument("--at", type=float, default=1.0, help="snapshot time [s]")
+    p.add_argument("--rounds", type=int, default=3, help="interleaved rounds (medians)")
+    args = p.parse_args()
+    out = output_dir(args)
+    yard = Yardsticks()
+    scene = bn.load_scenario("deployment", {"simulation.kernels": "grid",
+                                            "scene.duration": args.at + 0.1})
+    parts = StepParts(args.at, args.rounds, yard)
+    bn.run(scene, None, observers=[parts])
+    doc = {"machine": machine(), "scene": "deployment", **parts.taken,
+           "yardsticks": yard.doc()}
+    (out / "grid_step.json").write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    t = parts.taken
+    for name, value in t["us"].items():
+        print(f"{name:24s} {value:7.3f} us  {t['x_bound'][name]:5.2f} x bound")
+    print(f"bound {t['sqrt_division_bound_us_per_step']:.3f} us, traffic floor "
+          f"{t['traffic_floor_us']:.3f} us ({t['bandwidth_GB_s']:.0f} GB/s over "
+          f"{t['step_bytes']} bytes), target {t['target_us']:.3f} us, plain loop "
+          f"{t['plain_loop_us_per_step']:.3f} us a step")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
