@@ -32,7 +32,7 @@ import json
 
 import numba as nb
 import numpy as np
-from common import At, Yardsticks, best_us, machine, output_dir, parser
+from common import At, Yardsticks, best_us, machine, output_dir, parser, triad_bandwidth
 
 import bulletnet as bn
 from bulletnet.solver import grid as G
@@ -97,13 +97,6 @@ def _time_updates(dv, r, z, d, ad, calls):
             d_e[k] = z_e[k] + 1e-300 * d_e[k]
 
 
-@nb.njit(cache=True, error_model="numpy")
-def _triad(a, b, c, calls):
-    for _ in range(calls):
-        for i in range(a.shape[0]):
-            a[i] = b[i] + 1e-300 * c[i]
-
-
 def _sums(a, count, calls):
     """``calls`` sums of a[:count], in order (compiled as :data:`_chain`) or with the
     additions free to be reordered, vectorized (:data:`_reordered`)."""
@@ -123,11 +116,9 @@ _reordered = nb.njit(error_model="numpy", fastmath={"reassoc"})(_sums)
 def bounds(working_set_bytes: int, count: int) -> dict:
     """The triad's bandwidth over three arrays of ``working_set_bytes`` in all [GB/s], a
     sequential sum's time over ``count`` terms [us] and the same sum's, reordered."""
-    n = max(working_set_bytes // 24, 1024)
-    a, b, c = (np.random.default_rng(k).random(n) for k in range(3))
-    triad = best_us(lambda k: _triad(a, b, c, k), 2000)
+    bandwidth, arrays = triad_bandwidth(working_set_bytes)
     terms = np.random.default_rng(3).random(count)
-    return {"triad_arrays_bytes": 24 * n, "bandwidth_GB_s": 24 * n / triad * 1e-3,
+    return {"triad_arrays_bytes": arrays, "bandwidth_GB_s": bandwidth,
             "sequential_sum_us": best_us(lambda k: _chain(terms, count, k)),
             "reordered_sum_us": best_us(lambda k: _reordered(terms, count, k))}
 

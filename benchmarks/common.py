@@ -18,7 +18,7 @@ from bulletnet.sim.observers import Observer
 from bulletnet.studies.bench import ERROR_KEYS, rmse_measure, timed
 
 __all__ = ["ERROR_KEYS", "At", "Yardsticks", "best_us", "errors", "machine", "output_dir",
-           "parser", "timed"]
+           "parser", "timed", "triad_bandwidth"]
 
 DEPLOYMENT_THREADS = 2 * 11 * 10 + 4
 """Threads of the paper's Ns = 11 net (the yardstick's) [-]."""
@@ -79,6 +79,25 @@ def best_us(call, calls: int = 5000) -> float:
         call(calls)
         best = min(best, (time.perf_counter() - start) / calls)
     return 1e6 * best
+
+
+def triad_bandwidth(working_set_bytes: int, minimum: int = 1024,
+                    calls: int = 2000) -> tuple[float, int]:
+    """The memory bandwidth [GB/s] of a triad a = b + s c over three float64 arrays of
+    ``working_set_bytes`` in all (each at least ``minimum`` long), best of 5 loops of
+    ``calls``; and the arrays' bytes."""
+    import numba as nb
+    import numpy as np
+
+    @nb.njit(error_model="numpy")
+    def triad(a, b, c, reps):
+        for _ in range(reps):
+            for i in range(a.shape[0]):
+                a[i] = b[i] + 1e-300 * c[i]
+
+    n = max(working_set_bytes // 24, minimum)
+    a, b, c = (np.random.default_rng(k).random(n) for k in range(3))
+    return 24 * n / best_us(lambda k: triad(a, b, c, k), calls) * 1e-3, 24 * n
 
 
 class Yardsticks:

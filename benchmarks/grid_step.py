@@ -39,6 +39,7 @@ from common import (
     output_dir,
     parser,
     sqrt_division_bound,
+    triad_bandwidth,
 )
 
 import bulletnet as bn
@@ -113,13 +114,6 @@ def _others(g, views, dt, calls):
         G._other_threads(g, views, dt, False)
 
 
-@nb.njit(error_model="numpy")
-def _triad(a, b, c, calls):
-    for _ in range(calls):
-        for i in range(a.shape[0]):
-            a[i] = b[i] + 1e-300 * c[i]
-
-
 def working_set(g, peaks) -> int:
     """Bytes of the rows a free step reads or writes: x, v, base, bend, other, 1/m, the
     threads' T e and parameters, the running maxima."""
@@ -161,21 +155,20 @@ class StepParts(At):
         threads = g.h_rest.shape[0] + g.v_rest.shape[0]
         traffic = 8 * (threads * (PASS_BYTES["stencils"] + PASS_BYTES["peaks"])
                        + rows * PASS_BYTES["node_pass"])
-        n = max(working_set(g, peaks) // 24, 256)
-        a, b, c = (np.random.default_rng(k).random(n) for k in range(3))
-        parts["triad"] = lambda k: _triad(a, b, c, k)
         times = {name: [] for name in parts}
-        bounds = []
+        bounds, bandwidths = [], []
         for _ in range(self.rounds):
             self.yard.time()
             bounds.append(1e-3 * sqrt_division_bound(threads=DEPLOYMENT_THREADS)
                           * DEPLOYMENT_THREADS)
+            bandwidth, arrays = triad_bandwidth(working_set(g, peaks), 256, CALLS // 10)
+            bandwidths.append(bandwidth)
             for name, call in parts.items():
-                times[name].append(best_us(call, CALLS // 10 if name == "triad" else CALLS))
+                times[name].append(best_us(call, CALLS))
         g.x[:], g.v[:] = x0, v0
         us = {name: statistics.median(t) for name, t in times.items()}
         bound = statistics.median(bounds)
-        bandwidth = 24 * n / us.pop("triad") * 1e-3
+        bandwidth = statistics.median(bandwidths)
         plain = 1e6 * statistics.median(self.yard.walls) / 3e6
         return {
             "t_s": state.time, "threads": threads, "node_rows": rows,
@@ -185,7 +178,7 @@ class StepParts(At):
             "plain_loop_us_per_step": plain,
             "x_plain_loop": {name: t / plain for name, t in us.items()},
             "step_bytes": traffic, "working_set_bytes": working_set(g, peaks),
-            "triad_arrays_bytes": 24 * n,
+            "triad_arrays_bytes": arrays, "bandwidths_GB_s_all": bandwidths,
             "bandwidth_GB_s": bandwidth, "traffic_floor_us": traffic / bandwidth * 1e-3,
             "target_us": 2.5 * bound}
 
