@@ -94,12 +94,8 @@ def _probe(g, level, calls):
 @nb.njit(error_model="numpy", _nrt=False)
 def _node_pass(g, dt, calls):
     """``calls`` node passes of the free step (bending_scale 0, no increment kept)."""
-    ns, length, x, v, inv_mass = U(g.ns), U(g.x.shape[1]), g.x, g.v, g.inv_mass
     for _ in range(calls):
-        for a in range(U(3)):
-            for i in range(length):
-                v[a, i] += dt * inv_mass[i] * G._net_force(g, a, i, ns, 0.0)
-                x[a, i] += dt * v[a, i]
+        G.node_pass(g, dt, 0.0, False)
 
 
 @nb.njit(error_model="numpy", _nrt=False)
@@ -155,13 +151,14 @@ class StepParts(At):
         threads = g.h_rest.shape[0] + g.v_rest.shape[0]
         traffic = 8 * (threads * (PASS_BYTES["stencils"] + PASS_BYTES["peaks"])
                        + rows * PASS_BYTES["node_pass"])
+        working = working_set(g, peaks)
         times = {name: [] for name in parts}
         bounds, bandwidths = [], []
         for _ in range(self.rounds):
             self.yard.time()
             bounds.append(1e-3 * sqrt_division_bound(threads=DEPLOYMENT_THREADS)
                           * DEPLOYMENT_THREADS)
-            bandwidth, arrays = triad_bandwidth(working_set(g, peaks), 256, CALLS // 10)
+            bandwidth, arrays = triad_bandwidth(working, 256, CALLS // 10)
             bandwidths.append(bandwidth)
             for name, call in parts.items():
                 times[name].append(best_us(call, CALLS))
@@ -177,7 +174,7 @@ class StepParts(At):
             "x_bound": {name: t / bound for name, t in us.items()},
             "plain_loop_us_per_step": plain,
             "x_plain_loop": {name: t / plain for name, t in us.items()},
-            "step_bytes": traffic, "working_set_bytes": working_set(g, peaks),
+            "step_bytes": traffic, "working_set_bytes": working,
             "triad_arrays_bytes": arrays, "bandwidths_GB_s_all": bandwidths,
             "bandwidth_GB_s": bandwidth, "traffic_floor_us": traffic / bandwidth * 1e-3,
             "target_us": 2.5 * bound}

@@ -417,9 +417,17 @@ def symplectic_step(grid, views, dt, bending_scale, increment):
     arrays field by field (195 words pushed on the stack, read with ``inspect_asm``) and the
     callee reads them afresh, every step; the plain deployment's ~1 us step took 0.76-0.83
     of its time inlined (benchmarks/grid_step.py, docs/speed.md)."""
+    thread_forces(grid, views, dt)
+    node_pass(grid, dt, bending_scale, increment)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def node_pass(grid, dt, bending_scale, increment):
+    """The node pass of :func:`symplectic_step`, after :func:`thread_forces`: dv = dt F / m
+    with F = :func:`_net_force`, v <- v + dv, x <- x + dt v over the rows, dv kept only with
+    ``increment``."""
     ns, length = U(grid.ns), U(grid.x.shape[1])
     x, v, dv, inv_mass = grid.x, grid.v, grid.dv, grid.inv_mass
-    thread_forces(grid, views, dt)
     for a in range(U(3)):
         if increment:  # two loops written out: one loop with this test inside is 5-10 % slower
             for i in range(length):
