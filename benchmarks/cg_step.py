@@ -6,8 +6,9 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
 
 1. the CG iterations a step of the run so far, and each part of a CG iteration, called
    5000 times on the snapshot's vectors: the product A d, the preconditioner's factor
-   (once a step), the preconditioning, the dot products (node by node, in node order: one
-   sequential chain of additions each), the vector updates (best of 5 loops);
+   (once a step), the preconditioning with the sums r . z and r . r taken in its pass, the
+   dot product d . A d (node by node, in node order: one sequential chain of additions
+   each sum), the vector updates (best of 5 loops);
 2. two bounds measured beside them: the memory bandwidth of a triad over arrays as large as
    the iteration's working set (so from the same cache level: above L1, inside L2), which
    with the bytes an iteration's passes read and write (counted below, :data:`PASS_ROWS`)
@@ -38,13 +39,12 @@ import bulletnet as bn
 from bulletnet.solver import grid as G
 from bulletnet.solver import integrators, pcg
 
-PASS_ROWS = {"product": 35, "preconditioning": 15, "dot_d_ad": 6, "updates": 27,
-             "dots_rz_rr": 6}
+PASS_ROWS = {"product": 35, "preconditioning_and_sums": 15, "dot_d_ad": 6, "updates": 27}
 """Rows of L doubles each pass of a CG iteration reads plus writes (grid layout): the product
 (two thread stencils: d 3, the blocks' along and across 2, axes 3, products written 3, each
-x2; the node pass: mass 1, d 3, both products 6, A d written 3), the preconditioning (inverse
-blocks 9, r 3, z written 3), d . A d (6), the updates (dv, d, r, A d read, dv and r written;
-then z, d read and d written), r . z with r . r (6)."""
+x2; the node pass: mass 1, d 3, both products 6, A d written 3), the preconditioning with
+r . z and r . r (inverse blocks 9, r 3, z written 3), d . A d (6), the updates (dv, d, r, A d
+read, dv and r written; then z, d read and d written)."""
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -61,8 +61,11 @@ def _time_factor(grid, calls):
 
 @nb.njit(cache=True, error_model="numpy")
 def _time_preconditioning(grid, r, z, calls):
+    s = 0.0
     for _ in range(calls):
-        G._precondition(grid, r, z)
+        rz, rr = G._precondition(grid, r, z)
+        s += rz + rr
+    return s
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -70,15 +73,6 @@ def _time_dot(d, ad, count, calls):
     s = 0.0
     for _ in range(calls):
         s += pcg._dot(d, ad, nb.uint64(count))
-    return s
-
-
-@nb.njit(cache=True, error_model="numpy")
-def _time_dots(r, z, count, calls):
-    s = 0.0
-    for _ in range(calls):
-        rz, rr = pcg._dots(r, z, nb.uint64(count))
-        s += rz + rr
     return s
 
 
@@ -134,10 +128,9 @@ class GridParts(At):
         r, z, d, ad = g.cg[0], g.cg[1], g.cg[2], g.cg[3]
         parts = {
             "product": best_us(lambda k: _time_product(g, d, ad, k)),
-            "preconditioning": best_us(lambda k: _time_preconditioning(g, r, z, k)),
+            "preconditioning_and_sums": best_us(lambda k: _time_preconditioning(g, r, z, k)),
             "dot_d_ad": best_us(lambda k: _time_dot(d, ad, count, k)),
             "updates": best_us(lambda k: _time_updates(g.dv, r, z, d, ad, k)),
-            "dots_rz_rr": best_us(lambda k: _time_dots(r, z, count, k)),
         }
         iteration = sum(parts.values())
         traffic = 8 * length * sum(PASS_ROWS.values())

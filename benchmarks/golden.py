@@ -14,15 +14,19 @@ The runs cover the grid and pair-list kernels, both integrators, bending, contac
 debris and self-contact (primitives, boxes and a mesh), the closing cables with their winches
 and the tether, the clamped cantilever and the ``bullet`` engine. Each is short (the whole
 check takes about a minute once compiled). The hashes are of the datasets' bytes, so they
-hold for one machine kind (a different CPU may round differently); the check is a tool for
-changes, not a test of physics.
+hold for one machine kind and one build of the libraries (a different CPU, or another numpy,
+may round differently: the file records the versions, and a check under others says so); the
+check is a tool for changes, not a test of physics: write the hashes at the commit before the
+change, in the environment of the check.
 """
 
 from __future__ import annotations
 
 import argparse
 import hashlib
+import importlib.metadata
 import json
+import platform
 import sys
 import tempfile
 from pathlib import Path
@@ -77,6 +81,17 @@ def dataset_hashes(path: Path) -> dict[str, str]:
     return out
 
 
+LIBRARIES = "_libraries"
+"""The key of the file's record of the versions the hashes were written with."""
+
+
+def libraries() -> dict[str, str]:
+    """The versions of the libraries the results depend on, and the machine's CPU kind."""
+    return {"machine": platform.machine(), "python": platform.python_version(),
+            **{name: importlib.metadata.version(name)
+               for name in ("numpy", "numba", "llvmlite", "scipy", "pybullet", "h5py")}}
+
+
 def run_cases(names: list[str]) -> dict[str, dict[str, str]]:
     """Run each named case into a temporary file; its dataset hashes, by case."""
     out = {}
@@ -101,9 +116,15 @@ def main() -> int:
     hashes = run_cases(names)
     if args.write:
         Path(args.write).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.write).write_text(json.dumps(hashes, indent=1, sort_keys=True) + "\n")
+        Path(args.write).write_text(json.dumps({LIBRARIES: libraries(), **hashes}, indent=1,
+                                               sort_keys=True) + "\n")
         return 0
     expected = json.loads(Path(args.check).read_text())
+    written, now = expected.get(LIBRARIES, {}), libraries()
+    for name in sorted(set(written) | set(now)):
+        if written.get(name) != now.get(name):
+            print(f"golden: written with {name} {written.get(name, '(not recorded)')}, "
+                  f"this environment has {now.get(name)}: differences may be the build's")
     differ = [f"{case}/{key}" for case in names for key in sorted(expected.get(case, {}))
               if hashes[case].get(key) != expected[case][key]]
     new = [f"{case}/{key}" for case in names

@@ -554,12 +554,21 @@ def _block_jacobi(grid):
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def _precondition(grid, r, z):
-    """z [m/s] = the inverse diagonal blocks times r [kg m/s] ((3, L) rows), node by node."""
+    """z [m/s] = the inverse diagonal blocks times r [kg m/s] ((3, L) rows), node by node;
+    returns r . z [kg m^2/s^2] and r . r [kg^2 m^2/s^2] summed in node order
+    (:func:`bulletnet.solver.pcg.dot_terms`)."""
     count, inv = U(grid.count), grid.block_inv
-    for a in range(U(3)):
-        for i in range(count):
-            z[a, i] = inv[U(3) * a, i] * r[0, i] + inv[U(3) * a + ONE, i] * r[1, i] \
-                + inv[U(3) * a + U(2), i] * r[2, i]
+    rz = rr = 0.0
+    for i in range(count):
+        r0, r1, r2 = r[0, i], r[1, i], r[2, i]
+        z0 = inv[0, i] * r0 + inv[1, i] * r1 + inv[2, i] * r2
+        z1 = inv[3, i] * r0 + inv[4, i] * r1 + inv[5, i] * r2
+        z2 = inv[6, i] * r0 + inv[7, i] * r1 + inv[8, i] * r2
+        z[0, i], z[1, i], z[2, i] = z0, z1, z2
+        tz, tr = pcg.dot_terms(r0, r1, r2, z0, z1, z2)
+        rz += tz
+        rr += tr
+    return rz, rr
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")

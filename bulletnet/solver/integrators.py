@@ -308,14 +308,22 @@ def _block_jacobi(system):
 @nb.njit(cache=True, error_model="numpy")
 def _precondition(system, r, z):
     """z [m/s] = the inverse diagonal blocks of :class:`PairSystem` times r [kg m/s], node by
-    node, zero on clamped nodes; r and z (N, 3)."""
+    node, zero on clamped nodes; r and z (N, 3). Returns r . z [kg m^2/s^2] and r . r
+    [kg^2 m^2/s^2] summed in node order (:func:`bulletnet.solver.pcg.dot_terms`)."""
     inv, fixed = system.block_inv, system.fixed
+    rz = rr = 0.0
     for i in range(r.shape[0]):
-        if fixed[i]:
-            z[i, 0], z[i, 1], z[i, 2] = 0.0, 0.0, 0.0
-            continue
-        for a in range(3):
-            z[i, a] = inv[i, a, 0] * r[i, 0] + inv[i, a, 1] * r[i, 1] + inv[i, a, 2] * r[i, 2]
+        r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
+        z0 = z1 = z2 = 0.0
+        if not fixed[i]:
+            z0 = inv[i, 0, 0] * r0 + inv[i, 0, 1] * r1 + inv[i, 0, 2] * r2
+            z1 = inv[i, 1, 0] * r0 + inv[i, 1, 1] * r1 + inv[i, 1, 2] * r2
+            z2 = inv[i, 2, 0] * r0 + inv[i, 2, 1] * r1 + inv[i, 2, 2] * r2
+        z[i, 0], z[i, 1], z[i, 2] = z0, z1, z2
+        tz, tr = pcg.dot_terms(r0, r1, r2, z0, z1, z2)
+        rz += tz
+        rr += tr
+    return rz, rr
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")

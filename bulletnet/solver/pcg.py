@@ -11,7 +11,9 @@ layout, and hand :func:`solve` the operations that depend on it, as compiled fun
 - ``factor(system)``: the block-Jacobi preconditioner, each node's 3 x 3 diagonal block of A
   inverted, kept in the system;
 - ``precondition(system, r, z)``: z = those inverse blocks times r, node by node (zero on a
-  clamped node's rows);
+  clamped node's rows), returning the sums r . z and r . r of :func:`dot_terms` over the
+  nodes in node order, taken in the same pass (a sum in order is a chain of additions; the
+  pass's other work runs beside it: :mod:`bulletnet.common.ordered_sums`);
 - ``components(x)``: x as component rows, x[a, i] component a of node i, shape (3, >= N):
   the grid's rows themselves, the transpose of a pair-list array.
 
@@ -43,15 +45,10 @@ def _dot(a, b, count):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _dots(r, z, count):
-    """(:func:`_dot` of r and z, :func:`_dot` of r and r) in one pass: the same sums in the
-    same order, their two dependency chains interleaved."""
-    rz = rr = 0.0
-    for i in range(count):
-        r0, r1, r2 = r[0, i], r[1, i], r[2, i]
-        rz += r0 * z[0, i] + r1 * z[1, i] + r2 * z[2, i]
-        rr += r0 * r0 + r1 * r1 + r2 * r2
-    return rz, rr
+def dot_terms(r0, r1, r2, z0, z1, z2):
+    """One node's terms of r . z and r . r, as :func:`solve` sums them (``precondition``
+    adds them up node by node in node order, in the pass that computes z)."""
+    return r0 * z0 + r1 * z1 + r2 * z2, r0 * r0 + r1 * r1 + r2 * r2
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -72,8 +69,7 @@ def solve(apply, factor, precondition, components, system, dv, r, z, d, ad, mass
     d [m/s], ad [kg m/s]. ``mass``: node masses [kg], shape (>= count,)."""
     n = nb.uint64(count)  # unsigned node indices: no negative-index wraparound in the loops
     # node by node (dot products, momentum): component rows; element by element: flat
-    dv_n, r_n, z_n, d_n, ad_n = (components(dv), components(r), components(z), components(d),
-                                 components(ad))
+    dv_n, r_n, d_n, ad_n = components(dv), components(r), components(d), components(ad)
     dv_e, r_e, z_e, d_e, ad_e = (dv.reshape(-1), r.reshape(-1), z.reshape(-1), d.reshape(-1),
                                  ad.reshape(-1))
     size = nb.uint64(r_e.shape[0])
@@ -90,10 +86,9 @@ def solve(apply, factor, precondition, components, system, dv, r, z, d, ad, mass
     apply(system, dv, ad)  # r <- rhs - A dv (warm start)
     for k in range(size):
         r_e[k] -= ad_e[k]
-    precondition(system, r, z)
+    rz, rr = precondition(system, r, z)
     for k in range(size):
         d_e[k] = z_e[k]
-    rz, rr = _dots(r_n, z_n, n)
     for _ in range(4 * count):
         if np.sqrt(rr) <= tol * rhs_norm:
             break
@@ -102,8 +97,7 @@ def solve(apply, factor, precondition, components, system, dv, r, z, d, ad, mass
         for k in range(size):
             dv_e[k] += alpha * d_e[k]
             r_e[k] -= alpha * ad_e[k]
-        precondition(system, r, z)
-        rz_new, rr = _dots(r_n, z_n, n)
+        rz_new, rr = precondition(system, r, z)
         beta = rz_new / rz
         rz = rz_new
         for k in range(size):
