@@ -178,13 +178,17 @@ def capture_quality(enclosed: float, mouth: float) -> float:
 
 
 def score(positions: np.ndarray, origin: np.ndarray, quaternion: np.ndarray,
-          geometry: ScoreGeometry) -> Score:
+          geometry: ScoreGeometry, enclosed_up_to: float = math.inf) -> Score:
     """The capture score of one frame: node positions (N, 3) [m] and the debris' body frame
-    at ``origin`` (3,) [m] with orientation ``quaternion`` (x, y, z, w) [-]."""
-    nodes = positions[:geometry.net_nodes]
-    enclosed = enclosed_fraction(nodes, geometry.samples, np.asarray(origin, dtype=float),
-                                 rotation_matrix(quaternion))
+    at ``origin`` (3,) [m] with orientation ``quaternion`` (x, y, z, w) [-]. The enclosed
+    fraction (the net's convex hull, most of a score's cost) only where the mouth opening is
+    at most ``enclosed_up_to`` [-], 0.0 elsewhere (for a judge that needs it only there)."""
     mouth = mouth_opening(positions, geometry.nodes_per_side, geometry.side)
+    enclosed = 0.0
+    if mouth <= enclosed_up_to:
+        enclosed = enclosed_fraction(positions[:geometry.net_nodes], geometry.samples,
+                                     np.asarray(origin, dtype=float),
+                                     rotation_matrix(quaternion))
     return Score(enclosed, mouth, capture_quality(enclosed, mouth))
 
 
@@ -243,18 +247,23 @@ class OutcomeMonitor:
 
     def observe(self, t: float, positions: np.ndarray, velocities: np.ndarray,
                 origin: np.ndarray, quaternion: np.ndarray, debris_velocity: np.ndarray,
-                contacts: int) -> Score:
+                contacts: int, *, judge_only: bool = False) -> Score | None:
         """Take the frame at time ``t`` [s]: node positions and velocities (N, 3) [m, m/s],
         the debris' body-frame origin (3,) [m], orientation (x, y, z, w) [-] and centre-of-mass
         velocity (3,) [m/s], and the nodes that touched it since the last frame [-]; return
-        the frame's :class:`Score`."""
+        the frame's :class:`Score`. With ``judge_only`` (a run judging as it goes), compute
+        only what the judgement needs and return None: nothing once decided, and the enclosed
+        fraction only where the mouth is closed enough for a capture (the same outcome)."""
         g = self.geometry
-        s = score(positions, origin, quaternion, g)
+        if judge_only and self.decided:
+            return None
+        s = score(positions, origin, quaternion, g,
+                  self.rules.mouth_opening if judge_only else math.inf)
         centre = origin + rotation_matrix(quaternion) @ g.center_of_mass
         away = receding(positions[:g.net_nodes], velocities[:g.net_nodes], g.mass, centre,
                         debris_velocity)
         self.update(t, s, contacts, away)
-        return s
+        return None if judge_only else s
 
     def update(self, t: float, s: Score, contacts: int, away: bool) -> None:
         """Judge the frame at time ``t`` [s] from its score, the nodes that touched the debris

@@ -114,7 +114,7 @@ class Outcome(Observer):
         self.monitor.observe(state.time, state.position, state.velocity,
                              body_origin(state.debris, debris), state.debris[QUAT],
                              state.debris[VELOCITY],
-                             int(np.count_nonzero(run.contacts["node_force"])))
+                             int(np.count_nonzero(run.contacts["node_force"])), judge_only=True)
         return self.monitor.decided and self.stop
 
     def finish(self, run: Run, status: str, attrs: dict) -> None:
