@@ -192,6 +192,11 @@ class Workspace(NamedTuple):
     gain: np.ndarray
     """Angular velocity change per step per unit held bending torque [rad/(N m s)],
     shape (N,) (:func:`angular_gains`)."""
+    rotation: np.ndarray
+    """The nodes' rotation vectors over the steps being taken [rad], shape (3, N)
+    (:func:`~bulletnet.kernels.bending.advance_rotation`'s scratch)."""
+    turned: np.ndarray
+    """The nodes' turned orientations [-], shape (4, N) (its scratch)."""
 
 
 def workspace(n: int, p: int) -> Workspace:
@@ -201,7 +206,8 @@ def workspace(n: int, p: int) -> Workspace:
         shear=np.zeros(p), along=np.zeros(p), across=np.zeros(p), axis=np.zeros((p, 3)),
         dv=np.zeros((n, 3)), cg=np.zeros((4, n, 3)), block_inv=np.zeros((n, 3, 3)),
         cg_iterations=np.zeros(1, dtype=np.int64), bend=np.zeros((n, 3)),
-        step_count=np.zeros(1, dtype=np.int64), gain=np.zeros(n))
+        step_count=np.zeros(1, dtype=np.int64), gain=np.zeros(n), rotation=np.zeros((3, n)),
+        turned=np.zeros((4, n)))
 
 
 class PairSystem(NamedTuple):
@@ -403,6 +409,21 @@ def angular_gains(method, weight, dt, model, gain):
         gain[i] = 0.0 if fixed[i] else dt / (inertia[i] + h * rot_c[i] + h * h * rot_k[i])
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _rotate(grid, quat, omega, gain, torque, held, steps, dt, work):
+    """:func:`~bulletnet.kernels.bending.advance_rotation` of (quat, omega) (N, 4), (N, 3) on
+    their component rows: on the grid (``grid`` not None) its own rows, C-contiguous, so that
+    the series' loop vectorizes (a view's strides are not known when it is compiled and that
+    loop then stays scalar: 8.7 against 3.6 us for 470 nodes); on the pair list the arrays'
+    transposes."""
+    if grid is None:
+        advance_rotation(quat.T, omega.T, gain, torque, held, steps, dt, work.rotation,
+                         work.turned)
+    else:
+        advance_rotation(grid.q, grid.w, gain, torque, held, steps, dt, work.rotation,
+                         work.turned)
+
+
 @nb.njit(cache=True, error_model="numpy")
 def bending_weight(bending, every, work):
     """Steps the bending springs evaluated this step stand for: ``every`` on every
@@ -505,7 +526,7 @@ def advance(on_grid: bool, implicit: bool):
             if quat is not None:
                 weight = bending_weight(True, every, work)
                 if weight > 0.0 and pending > 0:
-                    advance_rotation(quat, omega, gain, torque, hold, pending, dt)
+                    _rotate(grid, quat, omega, gain, torque, hold, pending, dt, work)
                     pending = 0
             if on_grid:  # the grid's stencils (bending as in external_forces)
                 if quat is not None:
@@ -559,7 +580,7 @@ def advance(on_grid: bool, implicit: bool):
             taken += 1
         if quat is not None:
             if pending > 0:
-                advance_rotation(quat, omega, gain, torque, hold, pending, dt)
+                _rotate(grid, quat, omega, gain, torque, hold, pending, dt, work)
         return taken
 
     return advance_loop
