@@ -111,6 +111,10 @@ def test_profile_accounts_for_the_run_loop(tmp_path):
             if line.endswith("%")]
     assert min(rows) >= 0
     assert sum(rows) == pytest.approx(result.wall_time_s, abs=5e-3)  # printed to 1 ms a row
+    # the split is calibrated at the run's last state, and the report says at which
+    assert split["time_s"] == result.state.time
+    assert any(f"last state, t = {result.state.time:.4g} s" in line
+               for line in report(profile, result.wall_time_s, False))
 
 
 def test_profile_sections_are_exclusive(monkeypatch):

@@ -22,6 +22,7 @@ import time
 from collections.abc import Callable
 
 import numba as nb
+import numpy as np
 
 from ..kernels.axial import axial_forces
 from ..model.state import NetState
@@ -118,8 +119,12 @@ def _seconds(run: Callable[[], None]) -> float:
 
 def step_split(engine, state: NetState) -> dict | None:
     """Calibrated share of the force kernels in one engine step, or None for an engine without
-    fixed steps. Returns ``{"steps", "force_s_per_step", "step_s_per_step"}`` [-, s, s]: the
-    median-ratio pair of :data:`PAIRS` interleaved timings."""
+    fixed steps, on a copy of the run's last ``state``. Returns ``{"steps",
+    "force_s_per_step", "step_s_per_step", "time_s"}`` [-, s, s, s]: the median-ratio pair of
+    :data:`PAIRS` interleaved timings, and the state's time; with contact also
+    ``"contact_s_per_step"`` [s] (full steps against steps without the contact stage) and
+    ``"near_debris"`` [-], the nodes within a step's reach of the debris there: contact costs
+    what that state has (none once the net has left the debris)."""
     if engine.steps == 0 or engine.dt <= 0:
         return None
     from ..solver.integrators import workspace
@@ -147,6 +152,7 @@ def step_split(engine, state: NetState) -> dict | None:
 
     flags = engine.contact.arrays.flags
     saved = flags.copy()
+    near = int(np.isfinite(engine.contact.arrays.debris_gap).sum()) if flags[0] else 0
 
     def without_contact(steps):
         flags[:] = False
@@ -164,9 +170,10 @@ def step_split(engine, state: NetState) -> dict | None:
                       for _ in range(PAIRS)), key=lambda t: t[0] / t[1])
     force_s, step_s, free_s = timings[PAIRS // 2]
     out = {"steps": PAIRS * steps, "force_s_per_step": force_s / steps,
-           "step_s_per_step": step_s / steps}
+           "step_s_per_step": step_s / steps, "time_s": state.time}
     if saved.any():
         out["contact_s_per_step"] = max(0.0, step_s - free_s) / steps
+        out["near_debris"] = near
     return out
 
 
@@ -197,8 +204,11 @@ def report(profile: Profile, total_s: float, contact: bool) -> list[str]:
     for name, seconds in rows:
         lines.append(f"  {name:<48} {seconds:9.3f} s  {100 * seconds / max(total_s, 1e-12):5.1f} %")
     if split is not None:
-        lines.append(f"  (split of the engine step from {split['steps']} calibration steps: "
-                     f"forces {split['force_s_per_step'] * 1e6:.3g} us of "
+        where = f"the run's last state, t = {split['time_s']:.4g} s"
+        if "near_debris" in split:  # contact costs what the state has: say what it had
+            where += f", {split['near_debris']} nodes within a step's reach of the debris"
+        lines.append(f"  (split of the engine step from {split['steps']} calibration steps at "
+                     f"{where}: forces {split['force_s_per_step'] * 1e6:.3g} us of "
                      f"{split['step_s_per_step'] * 1e6:.3g} us a step)")
     if not contact:
         lines.append("  contact: none, the scene has no contact")
