@@ -114,3 +114,20 @@ def test_bending_rotations_limit_only_the_explicit_method():
                                      "bending.every": every})
     assert is_stable(explicit(math.floor(0.9 * limits.bending_limit / dt)), dt, 0.1)
     assert not is_stable(explicit(math.ceil(3 * limits.bending_limit / dt)), dt, 0.1)
+
+
+def test_divergence_advice_names_what_can_diverge():
+    # An implicit-Euler run's threads cannot diverge (A-stable): its error must not advise
+    # the integrator it already uses; with the exact contact law (not passive beside them,
+    # docs/capture.md) it names the implicit law.
+    from bulletnet.sim.loop import _divergence
+
+    scene = small_scene()
+    limits = scene_limits(scene)
+    state = bn.initial_state(scene, bn.build_model(scene))
+    for integrator, exact, wanted, unwanted in (
+            ("symplectic_euler", False, "the implicit_euler integrator", "contact.model"),
+            ("implicit_euler", False, "use a smaller --dt", "implicit_euler integrator"),
+            ("implicit_euler", True, "use contact.model=implicit", "implicit_euler integrator")):
+        text = str(_divergence("non-finite state", state, 1e-3, integrator, limits, exact))
+        assert wanted in text and unwanted not in text

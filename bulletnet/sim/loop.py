@@ -116,15 +116,24 @@ def _check(state: NetState, limit: float) -> str:
 
 
 def _divergence(reason: str, state: NetState, dt: float, integrator: str,
-                limits: Limits) -> DivergenceError:
+                limits: Limits, exact_contact: bool) -> DivergenceError:
     """The typed error of a diverged run, naming the step and the analytical limit (an
-    adaptive run, ``dt`` 0, has none)."""
+    adaptive run, ``dt`` 0, has none) and what to change: on implicit Euler, whose threads
+    cannot diverge, a smaller step or, with the ``exact`` contact law (``exact_contact``),
+    the implicit one (docs/capture.md, "Contact at practical steps")."""
     if dt <= 0:
         return DivergenceError(f"diverged at t = {state.time:.6g} s: {reason} with the "
                                "adaptive reference engine", state.time)
+    if integrator != "implicit_euler":
+        advice = "use a smaller --dt or the implicit_euler integrator"
+    elif exact_contact:
+        advice = ("the exact contact law gives back energy beside implicit-Euler threads: "
+                  "use contact.model=implicit (or a smaller --dt)")
+    else:
+        advice = "use a smaller --dt"
     return DivergenceError(
         f"diverged at t = {state.time:.6g} s: {reason} with step {dt:.3g} s; "
-        f"{limits.describe(integrator)}; use a smaller --dt or the implicit_euler integrator",
+        f"{limits.describe(integrator)}; {advice}",
         state.time, step=dt, limit=limits.for_integrator(integrator))
 
 
@@ -203,7 +212,9 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             if reason:
                 raise _divergence(reason, state, engine.dt, engine.integrator,
                                   analytical_limits(model, start_position,
-                                                    scenario.bending.enabled))
+                                                    scenario.bending.enabled),
+                                  scenario.contact.enabled
+                                  and scenario.contact.model == "exact")
             interrupt.check()  # a stop request the signal's own exception lost
             stop = take_frame()
             if progress is not None:
