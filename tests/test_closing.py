@@ -230,6 +230,27 @@ def test_closing_energy_rises_by_the_winch_work_and_no_more():
     assert rec.cables["rest_length"][-1].max() < rec.cables["rest_length"][0].min()
 
 
+@pytest.mark.xfail(strict=True, reason="known: a frame's thread loads rewrite the closing "
+                   "cables' tension that the winches' stall test reads at the next step "
+                   "(Engine.thread_loads), so a recorded run takes another course; fixed with "
+                   "the re-run of the closing-cable studies it moves")
+def test_a_recorded_run_takes_the_course_of_an_unrecorded_one(tmp_path):
+    # Reference: determinism. Recording reads the run (each frame's thread loads, cable
+    # loads, peaks), so a run with closing cables must end in the same state, bit for bit,
+    # recorded at 100 Hz or not at all.
+    from bulletnet import run
+
+    s = scenario.load("deployment", {
+        "net.nodes_per_side": 7, "scene.duration": 1.5, "closing.enabled": True,
+        "closing.trigger": "time", "closing.trigger_time": 0.3, "closing.reel_speed": 2.0,
+        "closing.stall_tension": 5.0, "simulation.integrator": "implicit_euler",
+        "simulation.dt": 1e-4, "simulation.record_rate": 100.0})
+    recorded = run(s, tmp_path / "recorded.h5").state
+    alone = run(s).state
+    np.testing.assert_array_equal(recorded.position, alone.position)
+    np.testing.assert_array_equal(recorded.velocity, alone.velocity)
+
+
 @pytest.mark.parametrize("trigger", ["contact", "wrap"])
 def test_winches_start_at_their_trigger(tmp_path, trigger):
     # Reference: the trigger rules. The winches reel (the rest length falls) from
