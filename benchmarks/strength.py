@@ -11,7 +11,9 @@ Each run is recorded to OUT, measured (:func:`bulletnet.analysis.metrics.strengt
 and deleted. Writes OUT/strength.json (copy it to benchmarks/results/) and
 docs/figures/strength.png (``bulletnet plot``'s figure of the deployment without and with
 bending).
-Usage: python benchmarks/strength.py [OUT] [--only NAME ...]
+Then the capture's first 9 s at steps from 1e-3 to 6.25e-5 s (``--convergence``: only these):
+how its least safety factor, set by snaps shorter than its step, depends on the step.
+Usage: python benchmarks/strength.py [OUT] [--only NAME ...] [--convergence]
 """
 
 from __future__ import annotations
@@ -33,6 +35,11 @@ CASES = [("deployment", 100.0, None), ("capture", 10.0, None), ("capture_closing
 with bending, at the scene's own record rate."""
 FIGURE_RATE = 100.0
 """Record rate of the deployments drawn in the figure [Hz]."""
+CONVERGENCE_STEPS = [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5]
+"""Steps [s] of the capture's first 9 s (its least safety factor comes before contact, in
+the unfolding's snaps), without and with bending: how the snaps' peaks depend on the step."""
+CONVERGENCE_DURATION = 9.0
+"""[s]: past the capture's least factors (4-8 s), before its first contact (9.1-10.1 s)."""
 
 
 def measure(path: Path, wall: float) -> dict:
@@ -43,15 +50,47 @@ def measure(path: Path, wall: float) -> dict:
     return {"frames": int(rec.time.size), "wall_s": wall, **doc}
 
 
+def step_convergence(out: Path) -> list[dict]:
+    """The capture's least safety factor over its first :data:`CONVERGENCE_DURATION` at each
+    of :data:`CONVERGENCE_STEPS`, without and with bending: step [s], factor, where, when
+    [s], the tension [N], wall [s]."""
+    rows = []
+    for bending in (False, True):
+        for dt in CONVERGENCE_STEPS:
+            path = out / "convergence.h5"
+            start = time.perf_counter()
+            bn.run(bn.load_scenario("capture", {"bending.enabled": bending,
+                                                "scene.duration": CONVERGENCE_DURATION,
+                                                "simulation.dt": dt}), path, force=True)
+            wall = time.perf_counter() - start
+            least = bn.metrics.strength_summary(bn.open_recording(path))
+            path.unlink()
+            rows.append({"bending": bending, "dt_s": dt,
+                         "least_safety_factor": least["least_safety_factor"],
+                         "element": least["element"], "time_s": least["time_s"],
+                         "tension_N": least["tension_N"], "wall_s": wall})
+            print(f"bending {bending}, dt {dt:g} s: least safety factor "
+                  f"{least['least_safety_factor']:.4g} ({least['element']['kind']} "
+                  f"{least['element']['index']} at {least['time_s']:.4f} s)", flush=True)
+    return rows
+
+
 def main() -> None:
     p = parser(__doc__)
     p.add_argument("--only", nargs="+", metavar="NAME", help="run these cases only (e.g. "
                    "capture_plain_2000Hz_15s) and update them in an existing strength.json")
+    p.add_argument("--convergence", action="store_true", help="run only the capture's step "
+                   "convergence and update it in an existing strength.json")
     args = p.parse_args()
     out = output_dir(args)
     table = out / "strength.json"
-    doc = (json.loads(table.read_text()) if args.only and table.exists()
+    doc = (json.loads(table.read_text()) if (args.only or args.convergence) and table.exists()
            else {"bulletnet_version": bn.__version__, "runs": {}})
+    if args.convergence:
+        doc["capture_step_convergence"] = step_convergence(out)
+        table.write_text(json.dumps(doc, indent=1))
+        print(f"wrote {table}")
+        return
     figure = {}
     for scene, rate, duration in CASES:
         for bending in (False, True):
@@ -83,6 +122,9 @@ def main() -> None:
                             tmp)
             shutil.copy(Path(tmp) / "strength.png", FIGURE)
         print(f"wrote {FIGURE}")
+    if not args.only:
+        doc["capture_step_convergence"] = step_convergence(out)
+        table.write_text(json.dumps(doc, indent=1))
     print(f"wrote {table}")
 
 
