@@ -196,9 +196,9 @@ net's hull, the mouth within 0.3 of its diagonal, for 0.1 s."""
 
 @pytest.mark.parametrize(("overrides", "outcome", "stop_s"), [
     (RELAXED, "captured", 0.5),
-    # the debris crossing at 4 m/s grazes the net (last touched at 0.25 s with the 56.5 deg
-    # launch) and is gone
-    ({"debris.velocity": [4.0, 0.0, -2.0], "outcome.quiet_time": 0.5}, "escaped", 0.75),
+    # the debris crossing at 4 m/s grazes the net (last touched at 0.30 s with the 56.5 deg
+    # launch and the capture's 1e-3 s step) and is gone
+    ({"debris.velocity": [4.0, 0.0, -2.0], "outcome.quiet_time": 0.5}, "escaped", 0.8),
     ({"debris.position": [40.0, 0.0, 3.0], "debris.velocity": [0.0, 0.0, 0.0],
       "outcome.miss_time": 0.3}, "missed", 0.3),
 ])
