@@ -91,28 +91,28 @@ class FastEngine(Engine):
 
     def kernel_groups(self, state: NetState) -> dict[str, list[tuple]]:
         """The compiled kernels the loop of this engine calls, by group, each as (dispatcher,
-        the arguments the loop passes it): ``step`` (the threads' step on this path), with
-        bending on the grid ``bending``, with contact ``contact`` (the contact stage), with a
-        tow on another integrator (``thrust.integrator``) ``tow`` (that integrator's loop). For
-        compiling groups apart, on both cores (:mod:`bulletnet.sim.compile_ahead`); empty for a
-        free net, whose first run compiles little."""
+        the arguments the loop passes it): ``step`` (the threads' step on this path; none on
+        the grid with symplectic Euler, whose step is inlined into the loop whole, so the
+        loop's own compilation is its), with bending on the grid ``bending``, with contact
+        ``contact`` (the contact stage), with a tow on another integrator
+        (``thrust.integrator``) ``tow`` (that integrator's loop). For compiling groups apart,
+        on both cores (:mod:`bulletnet.sim.compile_ahead`); empty for a free net, whose first
+        run compiles little."""
         if self.free:
             return {}
         pos, vel, quat, omega = self._loop_arrays(state)
+        groups = {}
         if self.grid is not None:
-            step = ([(grid_kernels.implicit_step, (self.grid, self.views, self.dt,
-                                                   self.cg_tolerance, self.work.cg_iterations))]
-                    if self.implicit else
-                    [(grid_kernels.symplectic_step, (self.grid, self.views, self.dt, 0.0,
-                                                     self.contact_arrays is not None))])
+            if self.implicit:
+                groups["step"] = [(grid_kernels.implicit_step, (
+                    self.grid, self.views, self.dt, self.cg_tolerance, self.work.cg_iterations))]
         else:  # the increment is inlined into the loop: the kernels it calls
             a, w = self.arrays, self.step_work
-            step = ([(integrators.implicit_increment, (pos, vel, a, w, self.dt,
-                                                       self.cg_tolerance))]
-                    if self.implicit else
-                    [(axial_forces, (pos, vel, a.pairs, a.rest, a.rest_rate, a.k_a, a.c_a,
-                                     a.bilateral, w.force, w.tension))])
-        groups = {"step": step}
+            groups["step"] = ([(integrators.implicit_increment, (pos, vel, a, w, self.dt,
+                                                                 self.cg_tolerance))]
+                              if self.implicit else
+                              [(axial_forces, (pos, vel, a.pairs, a.rest, a.rest_rate, a.k_a,
+                                               a.c_a, a.bilateral, w.force, w.tension))])
         tow = self.scenario.thrust
         if tow.enabled and tow.integrator and (tow.integrator == "implicit_euler") != self.implicit:
             groups["tow"] = [(integrators.advance(self.grid is not None, not self.implicit), (
