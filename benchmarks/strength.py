@@ -62,13 +62,12 @@ def step_convergence(out: Path) -> list[dict]:
             bn.run(bn.load_scenario("capture", {"bending.enabled": bending,
                                                 "scene.duration": CONVERGENCE_DURATION,
                                                 "simulation.dt": dt}), path, force=True)
-            wall = time.perf_counter() - start
-            least = bn.metrics.strength_summary(bn.open_recording(path))
+            least = measure(path, time.perf_counter() - start)
             path.unlink()
             rows.append({"bending": bending, "dt_s": dt,
                          "least_safety_factor": least["least_safety_factor"],
                          "element": least["element"], "time_s": least["time_s"],
-                         "tension_N": least["tension_N"], "wall_s": wall})
+                         "tension_N": least["tension_N"], "wall_s": least["wall_s"]})
             print(f"bending {bending}, dt {dt:g} s: least safety factor "
                   f"{least['least_safety_factor']:.4g} ({least['element']['kind']} "
                   f"{least['element']['index']} at {least['time_s']:.4f} s)", flush=True)
