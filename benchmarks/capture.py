@@ -8,11 +8,16 @@
    snapshots) go to OUT/figures/.
 2. Step convergence of the aggregate measures (the capture is chaotic: positions are not
    comparable over 120 s): the first 20 s at dt = 1e-3 ... 1.25e-4 s against the finest.
+   ``--tolerance`` (only this, updated in an existing OUT/capture.json): the same 20 s at the
+   scene's 1e-3 s with the implicit solver's CG tolerance from 1e-6 to 3e-3, without and with
+   bending, against the finest step's run of each: what the tolerance adds to the step's
+   error, and what it saves (CG iterations a step, loop time).
 3. ``fast`` against ``bullet`` (PyBullet does the contact, per-body values fitted to the
    pairs) over the first second of contact, on a head-on variant (debris 5 m away, closing at
    2 m/s, contact at ~1.5 s): Eq. 14 RMSE, first-contact agreement, wrap; wall times.
 
-Writes OUT/capture.json. Usage: python benchmarks/capture.py [OUT] [--skip-convergence]
+Writes OUT/capture.json.
+Usage: python benchmarks/capture.py [OUT] [--skip-convergence | --tolerance]
 """
 
 from __future__ import annotations
@@ -27,6 +32,10 @@ import bulletnet as bn
 from bulletnet.analysis.plots import plot_recordings
 
 FIG11_TIMES = [9.0, 14.0, 27.0, 44.0, 82.0]
+STEPS = [1e-3, 5e-4, 2.5e-4, 1.25e-4]
+"""The convergence's steps [s], the last the reference."""
+TOLERANCES = [1e-6, 1e-4, 3e-4, 1e-3, 3e-3]
+"""The CG tolerances [-] compared at the scene's step."""
 HEAD_ON = {"debris.position": [0.0, 0.0, 5.0], "debris.velocity": [0.0, 0.0, -2.0],
            "scene.duration": 2.5, "simulation.record_rate": 20.0}
 
@@ -50,11 +59,63 @@ def measures(rec: bn.Recording) -> dict:
                               "max_energy_gain_J")}
 
 
+def against(rec: bn.Recording, ref: bn.Recording) -> dict:
+    """The first 20 s's errors of ``rec`` against the reference ``ref``: first contact [s],
+    the wrap's largest [-] and the mouth area's RMS [m^2] over their common frames."""
+    n = min(rec.time.size, ref.time.size)
+    return {"first_contact_error_s": (bn.metrics.first_contact_time(rec)
+                                      - bn.metrics.first_contact_time(ref)),
+            "wrap_max_abs_error": float(np.abs(bn.metrics.wrap(rec)[:n]
+                                               - bn.metrics.wrap(ref)[:n]).max()),
+            "mouth_area_rms_error_m2": float(np.sqrt(np.mean(
+                (bn.metrics.mouth_area(rec)[:n] - bn.metrics.mouth_area(ref)[:n]) ** 2)))}
+
+
+def converged(out, bending: bool = False) -> bn.Recording:
+    """The first 20 s at the convergence's finest step (without bending: its reference; run
+    if not in OUT)."""
+    path = out / f"converge_{STEPS[-1]:g}{'_bending' if bending else ''}.h5"
+    if not path.exists():
+        run({"scene.duration": 20.0, "simulation.dt": STEPS[-1], "bending.enabled": bending},
+            path)
+    return bn.open_recording(path)
+
+
+def tolerance(out) -> list[dict]:
+    """The first 20 s at the scene's step by CG tolerance, without and with bending (module
+    doc, 2.): errors against :func:`converged`, CG iterations a step, loop and run wall [s]."""
+    rows = []
+    for bending in (False, True):
+        ref = converged(out, bending)
+        for tol in TOLERANCES:
+            wall, rec, status = run({"scene.duration": 20.0, "simulation.cg_tolerance": tol,
+                                     "bending.enabled": bending},
+                                    out / f"tolerance_{tol:g}_{bending}.h5")
+            stats = rec.attrs
+            rows.append({"bending": bending, "cg_tolerance": tol, "status": status,
+                         "wall_s": wall, "loop_s": float(stats["wall_time_s"]),
+                         "cg_iterations_per_step": (float(stats["stats_cg_iterations"])
+                                                    / float(stats["stats_steps"])),
+                         "first_contact_s": bn.metrics.first_contact_time(rec),
+                         **against(rec, ref)})
+            print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
 def main() -> None:
     p = parser(__doc__)
     p.add_argument("--skip-convergence", action="store_true")
+    p.add_argument("--tolerance", action="store_true", help="run only the CG tolerance's "
+                   "section and update it in an existing capture.json")
     args = p.parse_args()
     out = output_dir(args)
+    if args.tolerance:
+        table = out / "capture.json"
+        doc = json.loads(table.read_text())
+        doc["cg_tolerance_20s"] = tolerance(out)
+        table.write_text(json.dumps(doc, indent=1))
+        print(f"wrote {table}")
+        return
     doc = {"paper": {"first_contact_s": {"bending": 9.0, "no_bending": 13.0},
                      "gone_by_s": 82.0, "vortex_wall_s": {"bending": 4800.0,
                                                           "no_bending": 540.0}}}
@@ -78,24 +139,15 @@ def main() -> None:
                     FIG11_TIMES)
 
     if not args.skip_convergence:
-        steps = [1e-3, 5e-4, 2.5e-4, 1.25e-4]
         recs, conv = {}, []
-        for dt in steps:
+        for dt in STEPS:
             wall, rec, status = run({"scene.duration": 20.0, "simulation.dt": dt},
                                     out / f"converge_{dt:g}.h5")
             recs[dt] = rec
             conv.append({"dt_s": dt, "wall_s": wall, "status": status,
                          "first_contact_s": bn.metrics.first_contact_time(rec)})
-        ref = recs[steps[-1]]
-        ref_wrap, ref_area = bn.metrics.wrap(ref), bn.metrics.mouth_area(ref)
-        for row, dt in zip(conv, steps, strict=True):
-            rec = recs[dt]
-            n = min(rec.time.size, ref.time.size)
-            row["first_contact_error_s"] = row["first_contact_s"] - conv[-1]["first_contact_s"]
-            row["wrap_max_abs_error"] = float(np.abs(bn.metrics.wrap(rec)[:n]
-                                                     - ref_wrap[:n]).max())
-            row["mouth_area_rms_error_m2"] = float(np.sqrt(np.mean(
-                (bn.metrics.mouth_area(rec)[:n] - ref_area[:n]) ** 2)))
+        for row, dt in zip(conv, STEPS, strict=True):
+            row.update(against(recs[dt], recs[STEPS[-1]]))
             print(json.dumps(row), flush=True)
         doc["convergence_20s"] = conv
 
