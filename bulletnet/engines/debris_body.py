@@ -104,22 +104,28 @@ class RigidDebris:
         self.client.setGravity(0.0, 0.0, 0.0)
         self.body = create_body(self.client, debris, body_origin(state, debris), state[QUAT],
                                 state[VELOCITY], state[OMEGA])
+        self.world = self.client._client
+        """PyBullet's id of this world: :meth:`step` calls the module's functions with it, as
+        the client does, without the client's lookup of each function at each call."""
         self._step = None
 
     def step(self, impulse: np.ndarray, interval: float, state: np.ndarray) -> None:
         """Apply ``impulse`` (6,) (force [N s], moment about the centre of mass [N m s],
         world frame) as constant force and torque over ``interval`` [s], step, and write the
         new debris state (:data:`~bulletnet.model.debris.STATE_SIZE`,) into ``state``."""
-        c = self.client
+        pb, world, body = self.pb, self.world, self.body
         if self._step != interval:
-            c.setPhysicsEngineParameter(fixedTimeStep=interval, numSubSteps=0)
+            pb.setPhysicsEngineParameter(fixedTimeStep=interval, numSubSteps=0,
+                                         physicsClientId=world)
             self._step = interval
-        com, _ = c.getBasePositionAndOrientation(self.body)
-        frame = self.pb.WORLD_FRAME
-        c.applyExternalForce(self.body, -1, (impulse[:3] / interval).tolist(), com, frame)
-        c.applyExternalTorque(self.body, -1, (impulse[3:] / interval).tolist(), frame)
-        c.stepSimulation()
-        read_state(c, self.body, state, self.debris)
+        com, _ = pb.getBasePositionAndOrientation(body, physicsClientId=world)
+        pb.applyExternalForce(body, -1, (impulse[:3] / interval).tolist(), com, pb.WORLD_FRAME,
+                              physicsClientId=world)
+        pb.applyExternalTorque(body, -1, (impulse[3:] / interval).tolist(), pb.WORLD_FRAME,
+                               physicsClientId=world)
+        pb.stepSimulation(physicsClientId=world)
+        com, q = pb.getBasePositionAndOrientation(body, physicsClientId=world)
+        write_state(state, self.debris, com, q, *pb.getBaseVelocity(body, physicsClientId=world))
 
     def close(self) -> None:
         self.client.disconnect()
@@ -137,11 +143,16 @@ def orbit_load(orbit: OrbitArrays, debris: Debris, state: np.ndarray) -> np.ndar
 
 def read_state(client, body: int, state: np.ndarray, debris: Debris) -> None:
     """Write the state (:data:`~bulletnet.model.debris.STATE_SIZE`,) of ``debris``' PyBullet body
-    into ``state``:
-    PyBullet's orientation is its inertial frame's, the body frame's times the principal
-    axes' rotation."""
+    into ``state`` (:func:`write_state`)."""
     com, q = client.getBasePositionAndOrientation(body)
-    v, w = client.getBaseVelocity(body)
+    write_state(state, debris, com, q, *client.getBaseVelocity(body))
+
+
+def write_state(state: np.ndarray, debris: Debris, com, q, v, w) -> None:
+    """Write into ``state`` (:data:`~bulletnet.model.debris.STATE_SIZE`,) the debris' state from
+    its PyBullet body's centre of mass [m], orientation (x, y, z, w), velocity [m/s] and angular
+    velocity [rad/s]: PyBullet's orientation is its inertial frame's, the body frame's times
+    the principal axes' rotation."""
     p = debris.principal_quaternion
     if p[3] != 1.0:  # principal axes off the body axes (else q as it is, zeros' signs too)
         q = quaternion_product(q, (-p[0], -p[1], -p[2], p[3]))

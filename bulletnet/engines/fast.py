@@ -149,6 +149,9 @@ class FastEngine(Engine):
             grid_kernels.load(self.grid, state, base)
         pos, vel, quat, omega = self._loop_arrays(state)
         free = self.free
+        loop = integrators.advance(on_grid, self.implicit)
+        contact_arrays = self.contact_arrays
+        debris = state.debris
         done = 0
         while done < steps:
             todo = min(chunk, steps - done)
@@ -158,8 +161,8 @@ class FastEngine(Engine):
                 if on_grid:
                     grid_kernels.load_forces(self.grid, base)
             if has_debris:
-                a.com[:], a.quat[0] = state.debris[COM], state.debris[QUAT]
-                a.velocity[:], a.omega[0] = state.debris[VELOCITY], state.debris[OMEGA]
+                a.com[:], a.quat[0] = debris[COM], debris[QUAT]
+                a.velocity[:], a.omega[0] = debris[VELOCITY], debris[OMEGA]
                 a.impulse[:] = 0.0
             if free:
                 grid_kernels.free_steps(self.implicit)(self.grid, self.views, todo, dt,
@@ -168,19 +171,18 @@ class FastEngine(Engine):
                 self.step_work.step_count[0] += todo
                 taken = todo
             else:
-                taken = integrators.advance(on_grid, self.implicit)(
-                    self.bending_every, todo, pos, vel, quat, omega, self.arrays,
-                    self.step_work, base, dt, self.cg_tolerance,
-                    self.contact_arrays, state.time + done * dt, self.grid, self.views,
-                    self.breakage, self.peaks)
+                taken = loop(self.bending_every, todo, pos, vel, quat, omega, self.arrays,
+                             self.step_work, base, dt, self.cg_tolerance, contact_arrays,
+                             state.time + done * dt, self.grid, self.views, self.breakage,
+                             self.peaks)
             if taken < todo:  # the self-contact list is full: grow it, go on
                 self.contact = contact.grow_pair_list(self.contact)
-                a = self.contact.arrays
+                a, contact_arrays = self.contact.arrays, self.contact_arrays
             if has_debris and taken:
                 if self.arrays.orbit is not None:  # held over the chunk, as the net's impulses
                     a.impulse[:] += taken * dt * orbit_load(self.arrays.orbit, self.debris,
                                                             state.debris)
-                self.rigid.step(a.impulse, taken * dt, state.debris)
+                self.rigid.step(a.impulse, taken * dt, debris)
             done += taken
             self._impulse_time += taken * dt
             if not np.isfinite(pos).all():
