@@ -8,7 +8,7 @@
    snapshots) go to OUT/figures/.
 2. Step convergence of the aggregate measures (the capture is chaotic: positions are not
    comparable over 120 s): the first 20 s at dt = 1e-3 ... 1.25e-4 s against the finest.
-   ``--tolerance`` (only this, updated in an existing OUT/capture.json): the same 20 s at the
+   ``--tolerance`` (only this, into OUT/capture_tolerance.json): the same 20 s at the
    scene's 1e-3 s with the implicit solver's CG tolerance from 1e-6 to 3e-3, without and with
    bending, against the finest step's run of each: what the tolerance adds to the step's
    error, and what it saves (CG iterations a step, loop time).
@@ -16,7 +16,7 @@
    pairs) over the first second of contact, on a head-on variant (debris 5 m away, closing at
    2 m/s, contact at ~1.5 s): Eq. 14 RMSE, first-contact agreement, wrap; wall times.
 
-Writes OUT/capture.json.
+Writes OUT/capture.json (OUT/capture_tolerance.json with ``--tolerance``).
 Usage: python benchmarks/capture.py [OUT] [--skip-convergence | --tolerance]
 """
 
@@ -60,33 +60,37 @@ def measures(rec: bn.Recording) -> dict:
 
 
 def against(rec: bn.Recording, ref: bn.Recording) -> dict:
-    """The first 20 s's errors of ``rec`` against the reference ``ref``: first contact [s],
-    the wrap's largest [-] and the mouth area's RMS [m^2] over their common frames."""
+    """The first 20 s's errors of ``rec`` against the reference ``ref``: first contact [s]
+    (None if either run has none), the wrap's largest [-] and the mouth area's RMS [m^2] over
+    their common frames."""
     n = min(rec.time.size, ref.time.size)
-    return {"first_contact_error_s": (bn.metrics.first_contact_time(rec)
-                                      - bn.metrics.first_contact_time(ref)),
+    first, first_ref = bn.metrics.first_contact_time(rec), bn.metrics.first_contact_time(ref)
+    return {"first_contact_error_s": (None if first is None or first_ref is None
+                                      else first - first_ref),
             "wrap_max_abs_error": float(np.abs(bn.metrics.wrap(rec)[:n]
                                                - bn.metrics.wrap(ref)[:n]).max()),
             "mouth_area_rms_error_m2": float(np.sqrt(np.mean(
                 (bn.metrics.mouth_area(rec)[:n] - bn.metrics.mouth_area(ref)[:n]) ** 2)))}
 
 
-def converged(out, bending: bool = False) -> bn.Recording:
-    """The first 20 s at the convergence's finest step (without bending: its reference; run
-    if not in OUT)."""
-    path = out / f"converge_{STEPS[-1]:g}{'_bending' if bending else ''}.h5"
-    if not path.exists():
-        run({"scene.duration": 20.0, "simulation.dt": STEPS[-1], "bending.enabled": bending},
-            path)
-    return bn.open_recording(path)
+def first_20s(out, dt: float, bending: bool) -> tuple[float | None, bn.Recording, str]:
+    """The capture's first 20 s at step ``dt`` [s], without or with bending, recorded in OUT
+    (the step convergence's runs and the tolerance's references): (wall [s], recording,
+    status); a completed recording already in OUT is reused (wall None)."""
+    path = out / f"converge_{dt:g}{'_bending' if bending else ''}.h5"
+    if path.exists() and bn.open_recording(path).status == "completed":
+        return None, bn.open_recording(path), "completed"
+    return run({"scene.duration": 20.0, "simulation.dt": dt, "bending.enabled": bending},
+               path)
 
 
 def tolerance(out) -> list[dict]:
     """The first 20 s at the scene's step by CG tolerance, without and with bending (module
-    doc, 2.): errors against :func:`converged`, CG iterations a step, loop and run wall [s]."""
+    doc, 2.): errors against the finest step's run (:func:`first_20s`), CG iterations a step,
+    loop and run wall [s]."""
     rows = []
     for bending in (False, True):
-        ref = converged(out, bending)
+        ref = first_20s(out, STEPS[-1], bending)[1]
         for tol in TOLERANCES:
             wall, rec, status = run({"scene.duration": 20.0, "simulation.cg_tolerance": tol,
                                      "bending.enabled": bending},
@@ -104,16 +108,16 @@ def tolerance(out) -> list[dict]:
 
 def main() -> None:
     p = parser(__doc__)
-    p.add_argument("--skip-convergence", action="store_true")
-    p.add_argument("--tolerance", action="store_true", help="run only the CG tolerance's "
-                   "section and update it in an existing capture.json")
+    only = p.add_mutually_exclusive_group()
+    only.add_argument("--skip-convergence", action="store_true")
+    only.add_argument("--tolerance", action="store_true", help="run only the CG tolerance's "
+                      "comparison, into capture_tolerance.json")
     args = p.parse_args()
     out = output_dir(args)
     if args.tolerance:
-        table = out / "capture.json"
-        doc = json.loads(table.read_text())
-        doc["cg_tolerance_20s"] = tolerance(out)
-        table.write_text(json.dumps(doc, indent=1))
+        table = out / "capture_tolerance.json"
+        table.write_text(json.dumps({"bulletnet_version": bn.__version__,
+                                     "cg_tolerance_20s": tolerance(out)}, indent=1))
         print(f"wrote {table}")
         return
     doc = {"paper": {"first_contact_s": {"bending": 9.0, "no_bending": 13.0},
@@ -141,8 +145,8 @@ def main() -> None:
     if not args.skip_convergence:
         recs, conv = {}, []
         for dt in STEPS:
-            wall, rec, status = run({"scene.duration": 20.0, "simulation.dt": dt},
-                                    out / f"converge_{dt:g}.h5")
+            wall, rec, status = run({"scene.duration": 20.0, "simulation.dt": dt,
+                                     "bending.enabled": False}, out / f"converge_{dt:g}.h5")
             recs[dt] = rec
             conv.append({"dt_s": dt, "wall_s": wall, "status": status,
                          "first_contact_s": bn.metrics.first_contact_time(rec)})

@@ -129,6 +129,7 @@ class RigidDebris:
 
     def close(self) -> None:
         self.client.disconnect()
+        self.world = -1  # (PyBullet reuses the id for the next world)
 
 
 def orbit_load(orbit: OrbitArrays, debris: Debris, state: np.ndarray) -> np.ndarray:

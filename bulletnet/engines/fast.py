@@ -149,7 +149,7 @@ class FastEngine(Engine):
             grid_kernels.load(self.grid, state, base)
         pos, vel, quat, omega = self._loop_arrays(state)
         free = self.free
-        loop = integrators.advance(on_grid, self.implicit)
+        loop = None if free else integrators.advance(on_grid, self.implicit)
         contact_arrays = self.contact_arrays
         debris = state.debris
         done = 0
@@ -181,7 +181,7 @@ class FastEngine(Engine):
             if has_debris and taken:
                 if self.arrays.orbit is not None:  # held over the chunk, as the net's impulses
                     a.impulse[:] += taken * dt * orbit_load(self.arrays.orbit, self.debris,
-                                                            state.debris)
+                                                            debris)
                 self.rigid.step(a.impulse, taken * dt, debris)
             done += taken
             self._impulse_time += taken * dt
