@@ -432,6 +432,8 @@ seed = 1
         margin = bn.metrics.safety(rec)
         assert row["min_safety_factor"] == margin["least_safety_factor"] > 1
         assert row["overloaded_elements"] == 0 and row["overloaded"] is False
+        # the energy check is the recording's own (passivity: a sound run has none)
+        assert row["max_energy_gain_J"] == bn.metrics.energy_gain(rec) <= 1e-9
     path = tmp_path / "out" / "runs" / "run_00000.h5"
     with h5py.File(path, "a") as f:
         f.attrs["outcome"] = "captured"

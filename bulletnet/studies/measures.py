@@ -179,12 +179,15 @@ CAPTURE_MEASURES: Measures = {
     "max_nodes_in_contact": max_nodes_in_contact,
     "leave_s": _leave,
     "outcome": outcome,
+    "max_energy_gain_J": _energy_gain,
     **STRENGTH_MEASURES,
 }
 """Summary measures of a capture's recording (a scene with debris and contact): first
 contact [s], largest wrap [-], most nodes in contact [-], leave time [s] (None: still on the
-debris at the end), the outcome (None until the recording keeps one) and
-:data:`STRENGTH_MEASURES`."""
+debris at the end), the outcome (None until the recording keeps one), the largest rise of
+the mechanical energy above its start and the work done [J]
+(:func:`bulletnet.analysis.metrics.energy_gain`: a sound run has none; a study shows which
+runs were not) and :data:`STRENGTH_MEASURES`."""
 
 
 TOW_MEASURES: Measures = {
@@ -197,16 +200,13 @@ TOW_MEASURES: Measures = {
     "tow_snap_peak_N": _tow_attribute("tow_snap_peak_N"),
     "tow_least_distance_m": _tow_attribute("tow_least_distance_m", -1.0),
     "tow_largest_debris_rate_deg_s": _tow_attribute("tow_largest_debris_rate_deg_s"),
-    "max_energy_gain_J": _energy_gain,
 }
 """Summary measures of a tow (a scene with ``[tow]`` judged, docs/tow.md): its outcome, the
 burn's start [s] and when the outcome was decided [s] (None: never started), the tether's
 peak and mean tension at the chaser [N], the snaps [-] and the largest snap's peak [N], the
 least chaser-to-debris distance [m] (None: never started) and the debris' largest angular
-speed [deg/s], all from the recording's ``tow_*`` attributes; and the largest rise of the
-mechanical energy above its start and the work done [J]
-(:func:`bulletnet.analysis.metrics.energy_gain`: whether the run stayed sound through its
-snaps; a sound run has none)."""
+speed [deg/s], all from the recording's ``tow_*`` attributes (a tow's scene is a capture's:
+:data:`CAPTURE_MEASURES` with them, its energy check too)."""
 
 
 def summary_measures(scenario) -> Measures:
