@@ -73,13 +73,16 @@ def against(rec: bn.Recording, ref: bn.Recording) -> dict:
                 (bn.metrics.mouth_area(rec)[:n] - bn.metrics.mouth_area(ref)[:n]) ** 2)))}
 
 
-def first_20s(out, dt: float, bending: bool) -> tuple[float | None, bn.Recording, str]:
+def first_20s(out, dt: float, bending: bool,
+              reuse: bool = False) -> tuple[float | None, bn.Recording, str]:
     """The capture's first 20 s at step ``dt`` [s], without or with bending, recorded in OUT
     (the step convergence's runs and the tolerance's references): (wall [s], recording,
-    status); a completed recording already in OUT is reused (wall None)."""
+    status); with ``reuse``, a completed recording already in OUT is taken (wall None)."""
     path = out / f"converge_{dt:g}{'_bending' if bending else ''}.h5"
-    if path.exists() and bn.open_recording(path).status == "completed":
-        return None, bn.open_recording(path), "completed"
+    if reuse and path.exists():
+        rec = bn.open_recording(path)
+        if rec.status == "completed":
+            return None, rec, "completed"
     return run({"scene.duration": 20.0, "simulation.dt": dt, "bending.enabled": bending},
                path)
 
@@ -90,7 +93,7 @@ def tolerance(out) -> list[dict]:
     loop and run wall [s]."""
     rows = []
     for bending in (False, True):
-        ref = first_20s(out, STEPS[-1], bending)[1]
+        ref = first_20s(out, STEPS[-1], bending, reuse=True)[1]
         for tol in TOLERANCES:
             wall, rec, status = run({"scene.duration": 20.0, "simulation.cg_tolerance": tol,
                                      "bending.enabled": bending},
@@ -145,8 +148,7 @@ def main() -> None:
     if not args.skip_convergence:
         recs, conv = {}, []
         for dt in STEPS:
-            wall, rec, status = run({"scene.duration": 20.0, "simulation.dt": dt,
-                                     "bending.enabled": False}, out / f"converge_{dt:g}.h5")
+            wall, rec, status = first_20s(out, dt, False)
             recs[dt] = rec
             conv.append({"dt_s": dt, "wall_s": wall, "status": status,
                          "first_contact_s": bn.metrics.first_contact_time(rec)})
