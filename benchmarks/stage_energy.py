@@ -7,17 +7,26 @@ step every ``debris.step``), and the net's mechanical energy (the nodes' kinetic
 threads' and closing cables' elastic energy) measured around each stage. Each stage's change,
 summed from ``--from``, is what it did that no force's work explains: the winches' change less
 their work; the implicit step's less the work of the external forces (thrust, loads) on its
-displacement; the contact stages' as they are (the debris barely moves: the work of its
-surface on the nodes is small). A stage that makes energy shows as a rising sum.
+displacement; the contact stages' as they are; and the debris' own energy change, from the
+impulses the net gives it (first order: J . v + L . w, its velocity v and angular velocity w
+held over the chunk), since a turning debris' surface does work on the nodes it carries. A
+stage that makes energy shows as a rising sum; their total is what the step made.
+
+The stages trade large amounts in a cinched bag (a node pressed on the debris or on another
+node: the implicit step draws it in and the contact stage puts it back, a few joules each way
+every step), so a rising total is localized step by step: ``--first-gain J`` stops at the
+first step whose total exceeds J and records where it went (the threads and cables whose
+energy rose most, before and after each stage, and the nodes the contact stages moved most).
 
     python benchmarks/stage_energy.py OUT [--scene removal] [--from 49] [--to 51]
-                                          [--set KEY=VALUE ...]
+                                          [--first-gain J] [--set KEY=VALUE ...]
 
 Writes OUT/stage_energy.json (every 0.01 s: time [s], the sums [J], the energies [J], the
-overlap projections so far [-, m], the largest closing-cable tension [N]) and prints every
-0.1 s. Implicit Euler, the sequential contact stage, no bending, no breakage and no reel only
-(the stages it copies); the pair-list kernels (``simulation.kernels = "pairs"``) and the
-scene's integrator throughout (no tow integrator: ``thrust.integrator = ""``) are forced.
+overlap projections so far [-, m], the largest closing-cable tension [N]; with
+``--first-gain``, the step found) and prints every 0.1 s. Implicit Euler, the sequential
+contact stage, no bending, no breakage and no reel only (the stages it copies); the
+pair-list kernels (``simulation.kernels = "pairs"``) and the scene's integrator throughout
+(no tow integrator: ``thrust.integrator = ""``) are forced.
 """
 
 from __future__ import annotations
@@ -38,7 +47,21 @@ from bulletnet.sim.observers import Observer
 from bulletnet.solver import integrators
 from bulletnet.solver.contact_stage import debris_stage, ensure_pairs, self_stage
 
-STAGES = ("winches", "implicit_step", "self_contact", "debris_contact")
+STAGES = ("winches", "implicit_step", "self_contact", "debris_contact", "debris")
+
+
+def energy_parts(arrays, pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The net's energies [J] part by part: each node's kinetic (N,), each thread's elastic
+    (P,), each closing cable's elastic (K,)."""
+    kinetic = 0.5 * arrays.mass * np.einsum("na,na->n", vel, vel)
+    stretch = np.maximum(np.linalg.norm(pos[arrays.pairs[:, 1]] - pos[arrays.pairs[:, 0]],
+                                        axis=1) - arrays.rest, 0.0)
+    threads = 0.5 * arrays.k_a * stretch**2
+    c = arrays.cables
+    cables = np.array([] if c is None else
+                      [elastic_energy(cable_length(pos, c, k), c.rest[k], c.rigidity[k])
+                       for k in range(c.rest.shape[0])])
+    return kinetic, threads, cables
 
 
 def net_energy(arrays, pos: np.ndarray, vel: np.ndarray) -> tuple[float, float, float]:
@@ -52,13 +75,38 @@ def net_energy(arrays, pos: np.ndarray, vel: np.ndarray) -> tuple[float, float, 
     return kinetic, threads, cables
 
 
+def localize(arrays, contact, parts, moves, speeds, projections, t: float,
+             total: float) -> dict:
+    """Where a step's energy went: ``parts`` the :func:`energy_parts` at the step's start,
+    after the implicit step and at its end; ``moves`` how far each node [m] the node-node and
+    the debris stage moved it; ``speeds`` each node's speed [m/s] at those three points."""
+    (k0, t0, c0), (k1, t1, c1), (k2, t2, c2) = parts
+    tension = arrays.k_a * np.sqrt(2.0 * t2 / arrays.k_a)
+    rose = np.argsort(t2 - t0)[::-1][:5]
+    moved = np.argsort(moves[0] + moves[1])[::-1][:8]
+    return {
+        "time_s": t, "gain_J": total, "projections": projections.tolist(),
+        "kinetic_J": [float(k0.sum()), float(k1.sum()), float(k2.sum())],
+        "threads_J": [float(t0.sum()), float(t1.sum()), float(t2.sum())],
+        "cables_J": [c0.tolist(), c1.tolist(), c2.tolist()],
+        "cable_tension_N": [] if arrays.cables is None else arrays.cables.tension.tolist(),
+        "threads": [{"thread": int(p), "nodes": arrays.pairs[p].tolist(),
+                     "energy_J": [float(t0[p]), float(t1[p]), float(t2[p])],
+                     "tension_N": float(tension[p])} for p in rose],
+        "nodes": [{"node": int(i), "moved_by_self_contact_mm": 1e3 * float(moves[0][i]),
+                   "moved_by_debris_contact_mm": 1e3 * float(moves[1][i]),
+                   "predicted_debris_gap_m": float(contact.debris_gap[i]),
+                   "speed_m_s": [float(s[i]) for s in speeds]} for i in moved]}
+
+
 class StageAudit(Observer):
     """From the first frame at or after ``start`` [s], steps the run by hand to ``end`` [s],
     auditing each stage; then stops the run."""
 
-    def __init__(self, start: float, end: float):
-        self.t_from, self.t_to = start, end
+    def __init__(self, start: float, end: float, first_gain: float | None = None):
+        self.t_from, self.t_to, self.first_gain = start, end, first_gain
         self.rows: list[dict] = []
+        self.found: dict | None = None
 
     def frame(self, run) -> bool:
         if run.state.time < self.t_from - 1e-9:
@@ -77,6 +125,9 @@ class StageAudit(Observer):
             ca.impulse[:] = 0.0
             for _ in range(chunk):
                 ensure_pairs(pos, a.radius, ca)
+                if self.first_gain is not None:
+                    parts, speeds = [energy_parts(a, pos, vel)], [np.linalg.norm(vel, axis=1)]
+                    projections = ca.projections.copy()
                 energies = [sum(net_energy(a, pos, vel))]
                 winch = a.cables.work.sum() if a.cables is not None else 0.0
                 reel(pos, a.cables, t, dt)
@@ -89,15 +140,34 @@ class StageAudit(Observer):
                 pos += dt * vel
                 work = float(np.einsum("na,na->", e.external + a.load, pos - start))
                 energies.append(sum(net_energy(a, pos, vel)))
+                free = pos.copy()
+                if self.first_gain is not None:
+                    parts.append(energy_parts(a, pos, vel))
+                    speeds.append(np.linalg.norm(vel, axis=1))
                 if ca.flags[1]:
                     self_stage(pos, vel, w.dv, a.mass, a.radius, ca, dt, t)
                 energies.append(sum(net_energy(a, pos, vel)))
+                apart, impulse = pos.copy(), ca.impulse.copy()
                 debris_stage(pos, vel, w.dv, a.mass, a.radius, a.fixed, ca, dt, t)
                 ca.com[:] += dt * ca.velocity
                 integrate_rotation(ca.quat, ca.omega, dt)
                 energies.append(sum(net_energy(a, pos, vel)))
-                sums += np.diff(energies) - (winch, work, 0.0, 0.0)
+                given = ca.impulse - impulse
+                debris = float(given[:3] @ ca.velocity + given[3:] @ ca.omega[0])
+                change = np.append(np.diff(energies) - (winch, work, 0.0, 0.0), debris)
+                sums += change
                 steps += 1
+                if self.first_gain is not None and change.sum() > self.first_gain:
+                    parts.append(energy_parts(a, pos, vel))
+                    speeds.append(np.linalg.norm(vel, axis=1))
+                    moves = (np.linalg.norm(apart - free, axis=1),
+                             np.linalg.norm(pos - apart, axis=1))
+                    self.found = localize(a, ca, parts, moves, speeds,
+                                          ca.projections - projections, t,
+                                          float(change.sum()))
+                    print(json.dumps(self.found, indent=1))
+                    self._row(t + dt, sums, net_energy(a, pos, vel), ca, a)
+                    return True
                 t = run.state.time + steps * dt
                 if steps % max(1, round(0.01 / dt)) == 0:
                     self._row(t, sums, net_energy(a, pos, vel), ca, a)
@@ -127,6 +197,9 @@ def main() -> None:
                    help="simulated time at which the audit starts [s] [49]")
     p.add_argument("--to", dest="end", type=float, default=51.0,
                    help="simulated time at which it ends [s] [51]")
+    p.add_argument("--first-gain", type=float, default=None, metavar="J",
+                   help="stop at the first step that makes more than J [J] and record where "
+                        "it went")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key (TOML value), as bulletnet run --set")
     args = p.parse_args()
@@ -140,12 +213,12 @@ def main() -> None:
             or scene.strength.breakage):
         raise SystemExit("stage_energy: implicit Euler, sequential contact, no bending, "
                          "reel or breakage only")
-    audit = StageAudit(args.start, args.end)
+    audit = StageAudit(args.start, args.end, args.first_gain)
     bn.run(scene, None, observers=[audit])
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "stage_energy.json").write_text(json.dumps(
         {"scene": args.scene, "overrides": overrides, "from_s": args.start, "to_s": args.end,
-         "rows": audit.rows}, indent=1))
+         "first_gain_J": args.first_gain, "found": audit.found, "rows": audit.rows}, indent=1))
 
 
 if __name__ == "__main__":
