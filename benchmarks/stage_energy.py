@@ -39,7 +39,6 @@ from pathlib import Path
 import numpy as np
 
 import bulletnet as bn
-from bulletnet.kernels.axial import axial_energy
 from bulletnet.kernels.bending import integrate_rotation
 from bulletnet.kernels.cable import cable_length, elastic_energy, reel
 from bulletnet.model.debris import COM, OMEGA, QUAT, VELOCITY
@@ -66,13 +65,8 @@ def energy_parts(arrays, pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, 
 
 def net_energy(arrays, pos: np.ndarray, vel: np.ndarray) -> tuple[float, float, float]:
     """(kinetic, threads' elastic, closing cables' elastic) energy of the net [J]."""
-    kinetic = 0.5 * float(np.einsum("n,na,na->", arrays.mass, vel, vel))
-    threads = float(axial_energy(pos, arrays.pairs, arrays.rest, arrays.k_a))
-    cables, c = 0.0, arrays.cables
-    if c is not None:
-        for k in range(c.rest.shape[0]):
-            cables += elastic_energy(cable_length(pos, c, k), c.rest[k], c.rigidity[k])
-    return kinetic, threads, cables
+    kinetic, threads, cables = energy_parts(arrays, pos, vel)
+    return float(kinetic.sum()), float(threads.sum()), float(cables.sum())
 
 
 def localize(arrays, contact, parts, moves, speeds, projections, t: float,
