@@ -10,13 +10,17 @@ their work; the implicit step's less the work of the external forces (thrust, lo
 displacement; the contact stages' as they are; and the debris' own energy change, from the
 impulses the net gives it (first order: J . v + L . w, its velocity v and angular velocity w
 held over the chunk), since a turning debris' surface does work on the nodes it carries. A
-stage that makes energy shows as a rising sum; their total is what the step made.
+stage that makes energy shows as a rising sum; their total is what the steps since ``--from``
+made.
 
 The stages trade large amounts in a cinched bag (a node pressed on the debris or on another
 node: the implicit step draws it in and the contact stage puts it back, a few joules each way
 every step), so a rising total is localized step by step: ``--first-gain J`` stops at the
-first step whose total exceeds J and records where it went (the threads and cables whose
-energy rose most, before and after each stage, and the nodes the contact stages moved most).
+first step whose total exceeds J and records where it went: the energies at the step's
+start, after the winches and the implicit step, and at its end, for the five threads whose
+energy rose most (with their elastic tension at the end [N]) and for every closing cable;
+the eight nodes the node-node and the debris contact stages moved most; the overlap
+projections of both stages in the step.
 
     python benchmarks/stage_energy.py OUT [--scene removal] [--from 49] [--to 51]
                                           [--first-gain J] [--set KEY=VALUE ...]
@@ -75,7 +79,7 @@ def localize(arrays, contact, parts, moves, speeds, projections, t: float,
     after the implicit step and at its end; ``moves`` how far each node [m] the node-node and
     the debris stage moved it; ``speeds`` each node's speed [m/s] at those three points."""
     (k0, t0, c0), (k1, t1, c1), (k2, t2, c2) = parts
-    tension = arrays.k_a * np.sqrt(2.0 * t2 / arrays.k_a)
+    tension = np.sqrt(2.0 * t2 * arrays.k_a)  # k x, from the elastic energy k x^2 / 2
     rose = np.argsort(t2 - t0)[::-1][:5]
     moved = np.argsort(moves[0] + moves[1])[::-1][:8]
     return {
