@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 import bulletnet as bn
+from bulletnet.kernels.axial import thread_energies
 from bulletnet.kernels.bending import integrate_rotation
 from bulletnet.kernels.cable import cable_length, elastic_energy, reel
 from bulletnet.model.debris import COM, OMEGA, QUAT, VELOCITY
@@ -57,9 +58,7 @@ def energy_parts(arrays, pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, 
     """The net's energies [J] part by part: each node's kinetic (N,), each thread's elastic
     (P,), each closing cable's elastic (K,)."""
     kinetic = 0.5 * arrays.mass * np.einsum("na,na->n", vel, vel)
-    stretch = np.maximum(np.linalg.norm(pos[arrays.pairs[:, 1]] - pos[arrays.pairs[:, 0]],
-                                        axis=1) - arrays.rest, 0.0)
-    threads = 0.5 * arrays.k_a * stretch**2
+    threads = thread_energies(pos, arrays.pairs, arrays.rest, arrays.k_a)
     c = arrays.cables
     cables = np.array([] if c is None else
                       [elastic_energy(cable_length(pos, c, k), c.rest[k], c.rigidity[k])
@@ -67,10 +66,10 @@ def energy_parts(arrays, pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, 
     return kinetic, threads, cables
 
 
-def net_energy(arrays, pos: np.ndarray, vel: np.ndarray) -> tuple[float, float, float]:
-    """(kinetic, threads' elastic, closing cables' elastic) energy of the net [J]."""
-    kinetic, threads, cables = energy_parts(arrays, pos, vel)
-    return float(kinetic.sum()), float(threads.sum()), float(cables.sum())
+def totals(parts: tuple[np.ndarray, ...]) -> tuple[float, float, float]:
+    """(kinetic, threads' elastic, closing cables' elastic) energy of the net [J], from its
+    :func:`energy_parts`."""
+    return tuple(float(part.sum()) for part in parts)
 
 
 def localize(arrays, contact, parts, moves, speeds, projections, t: float,
@@ -123,13 +122,12 @@ class StageAudit(Observer):
             ca.impulse[:] = 0.0
             for _ in range(chunk):
                 ensure_pairs(pos, a.radius, ca)
-                if self.first_gain is not None:
-                    parts, speeds = [energy_parts(a, pos, vel)], [np.linalg.norm(vel, axis=1)]
-                    projections = ca.projections.copy()
-                energies = [sum(net_energy(a, pos, vel))]
+                parts, speeds = [energy_parts(a, pos, vel)], [np.linalg.norm(vel, axis=1)]
+                projections = ca.projections.copy()
+                energies = [sum(totals(parts[-1]))]
                 winch = a.cables.work.sum() if a.cables is not None else 0.0
                 reel(pos, a.cables, t, dt)
-                energies.append(sum(net_energy(a, pos, vel)))
+                energies.append(sum(totals(energy_parts(a, pos, vel))))
                 winch = (a.cables.work.sum() if a.cables is not None else 0.0) - winch
                 start = pos.copy()
                 integrators.implicit_step(0.0, pos, vel, None, None, a, w, e.base_forces(),
@@ -137,38 +135,37 @@ class StageAudit(Observer):
                 vel += w.dv
                 pos += dt * vel
                 work = float(np.einsum("na,na->", e.external + a.load, pos - start))
-                energies.append(sum(net_energy(a, pos, vel)))
+                parts.append(energy_parts(a, pos, vel))
+                speeds.append(np.linalg.norm(vel, axis=1))
+                energies.append(sum(totals(parts[-1])))
                 free = pos.copy()
-                if self.first_gain is not None:
-                    parts.append(energy_parts(a, pos, vel))
-                    speeds.append(np.linalg.norm(vel, axis=1))
                 if ca.flags[1]:
                     self_stage(pos, vel, w.dv, a.mass, a.radius, ca, dt, t)
-                energies.append(sum(net_energy(a, pos, vel)))
+                energies.append(sum(totals(energy_parts(a, pos, vel))))
                 apart, impulse = pos.copy(), ca.impulse.copy()
                 debris_stage(pos, vel, w.dv, a.mass, a.radius, a.fixed, ca, dt, t)
                 ca.com[:] += dt * ca.velocity
                 integrate_rotation(ca.quat, ca.omega, dt)
-                energies.append(sum(net_energy(a, pos, vel)))
+                parts.append(energy_parts(a, pos, vel))
+                speeds.append(np.linalg.norm(vel, axis=1))
+                energies.append(sum(totals(parts[-1])))
                 given = ca.impulse - impulse
                 debris = float(given[:3] @ ca.velocity + given[3:] @ ca.omega[0])
                 change = np.append(np.diff(energies) - (winch, work, 0.0, 0.0), debris)
                 sums += change
                 steps += 1
                 if self.first_gain is not None and change.sum() > self.first_gain:
-                    parts.append(energy_parts(a, pos, vel))
-                    speeds.append(np.linalg.norm(vel, axis=1))
                     moves = (np.linalg.norm(apart - free, axis=1),
                              np.linalg.norm(pos - apart, axis=1))
                     self.found = localize(a, ca, parts, moves, speeds,
                                           ca.projections - projections, t,
                                           float(change.sum()))
                     print(json.dumps(self.found, indent=1))
-                    self._row(t + dt, sums, net_energy(a, pos, vel), ca, a)
+                    self._row(t + dt, sums, totals(parts[-1]), ca, a)
                     return True
                 t = run.state.time + steps * dt
                 if steps % max(1, round(0.01 / dt)) == 0:
-                    self._row(t, sums, net_energy(a, pos, vel), ca, a)
+                    self._row(t, sums, totals(parts[-1]), ca, a)
             e.rigid.step(ca.impulse, chunk * dt, state.debris)
         return True
 

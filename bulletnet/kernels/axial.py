@@ -189,10 +189,18 @@ def add_thread_rhs(vel, pairs, k, along, across, axis, dt, r):
         add_pair(r, j, i, w0, w1, w2)
 
 
-def axial_energy(pos: np.ndarray, pairs: np.ndarray, rest: np.ndarray, k: np.ndarray) -> float:
-    """Elastic energy [J] stored in the stretched threads: sum of k (l - l_0)^2 / 2 over l > l_0.
+def thread_energies(pos: np.ndarray, pairs: np.ndarray, rest: np.ndarray,
+                    k: np.ndarray) -> np.ndarray:
+    """Elastic energy [J] stored in each thread: k (l - l_0)^2 / 2 if l > l_0, else 0.
 
-    ``pos`` may be (N, 3) or (T, N, 3); the result is then a scalar or shape (T,)."""
+    ``pos`` may be (N, 3) or (T, N, 3); the result is then shape (P,) or (T, P)."""
     d = pos[..., pairs[:, 1], :] - pos[..., pairs[:, 0], :]
     stretch = np.maximum(np.linalg.norm(d, axis=-1) - rest, 0.0)
-    return 0.5 * np.sum(k * stretch**2, axis=-1)
+    return 0.5 * k * stretch**2
+
+
+def axial_energy(pos: np.ndarray, pairs: np.ndarray, rest: np.ndarray, k: np.ndarray) -> float:
+    """Elastic energy [J] stored in the stretched threads: the sum of :func:`thread_energies`.
+
+    ``pos`` may be (N, 3) or (T, N, 3); the result is then a scalar or shape (T,)."""
+    return np.sum(thread_energies(pos, pairs, rest, k), axis=-1)
