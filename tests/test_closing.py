@@ -230,10 +230,6 @@ def test_closing_energy_rises_by_the_winch_work_and_no_more():
     assert rec.cables["rest_length"][-1].max() < rec.cables["rest_length"][0].min()
 
 
-@pytest.mark.xfail(strict=True, reason="known: a frame's thread loads rewrite the closing "
-                   "cables' tension that the winches' stall test reads at the next step "
-                   "(Engine.thread_loads), so a recorded run takes another course; fixed with "
-                   "the re-run of the closing-cable studies it moves")
 def test_a_recorded_run_takes_the_course_of_an_unrecorded_one(tmp_path):
     # Reference: determinism. Recording reads the run (each frame's thread loads, cable
     # loads, peaks), so a run with closing cables must end in the same state, bit for bit,

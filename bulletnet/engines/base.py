@@ -318,14 +318,18 @@ class Engine(ABC):
     def thread_loads(self, state: NetState) -> tuple[np.ndarray, np.ndarray]:
         """Axial tension (Eq. 3) and shear force magnitude of every thread at ``state`` [N],
         each shape (P,); the shear is zero without bending."""
-        work = self._loads_work
+        work, model = self._loads_work, self.arrays
+        if model.cables is not None:
+            # the cables' kernel writes the tension, length and damper force it evaluates,
+            # which the winches read at the next step: a frame's loads must not change the run
+            model = model._replace(cables=type(model.cables)(*(a.copy() for a in model.cables)))
         quat, omega = self.rotations(state)
         # the forces alone, as a symplectic step takes them (not through `increment`, whose
         # implicit branch would be compiled once more for these arrays' layout: 10 s)
-        integrators.external_forces(state.position, state.velocity, quat, omega, self.arrays,
+        integrators.external_forces(state.position, state.velocity, quat, omega, model,
                                     work, self.base_forces(),
                                     1.0 if self.bending else 0.0, False)
-        integrators.symplectic_increment(state.position, state.velocity, self.arrays, work, 1.0)
+        integrators.symplectic_increment(state.position, state.velocity, model, work, 1.0)
         return work.tension.copy(), work.shear.copy()
 
     def stats(self) -> dict:
