@@ -278,7 +278,7 @@ def test_paper_capture_with_closing_is_captured(tmp_path):
     # Reference: the capture score's outcome rules (docs/capture.md) on the paper's capture
     # with the closing mechanism (scenarios/capture_closing.toml, no bending). Without it the
     # same net escapes (docs/capture.md); with the winches started at first contact the
-    # perimeter gathers round the CSM and holds it: captured (at 38.2 s at the 56.5° launch,
+    # perimeter gathers round the CSM and holds it: captured (at 38.9 s at the 56.5° launch,
     # held to 120 s: benchmarks/closing.py). The run stops once decided.
     from bulletnet import run
 
