@@ -20,7 +20,13 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    iteration counts to the scene's tolerance, from the solver's warm start and from zero,
    with block Jacobi (the solver's), symmetric Gauss-Seidel and, if ``pyamg`` is installed,
    smoothed-aggregation AMG (a V-cycle, with pyamg's Gauss-Seidel smoothing and with block
-   Jacobi's) as preconditioners.
+   Jacobi's) as preconditioners;
+4. the rest of the step at the grid path's state: the contact stages (node-debris and
+   node-node, each called from a copy of the state) and then the whole step, the run's
+   loop advanced over :data:`STEP_SPAN` (its CG iterations counted), so that the step's
+   time splits into the CG (iterations x the iteration, plus the factor), the two contact
+   stages and what is left (forces, the system's assembly, cables, winches, peaks, the
+   returns to Python for the debris' dynamics).
 
 Also the frozen yardstick, timed at the start and the end. Writes ``OUT/cg_step.json``:
 
@@ -30,14 +36,17 @@ Also the frozen yardstick, timed at the start and the end. Writes ``OUT/cg_step.
 from __future__ import annotations
 
 import json
+import time
 
 import numba as nb
 import numpy as np
 from common import At, Yardsticks, best_us, machine, output_dir, parser, triad_bandwidth
+from contact_cache import debris_stage_calls
 
 import bulletnet as bn
 from bulletnet.solver import grid as G
 from bulletnet.solver import integrators, pcg
+from bulletnet.solver.contact_stage import self_stage
 
 PASS_ROWS = {"product": 35, "preconditioning_and_sums": 15, "dot_d_ad": 6, "updates": 27}
 """Rows of L doubles each pass of a CG iteration reads plus writes (grid layout): the product
@@ -91,6 +100,48 @@ def _time_updates(dv, r, z, d, ad, calls):
             d_e[k] = z_e[k] + 1e-300 * d_e[k]
 
 
+@nb.njit(cache=True, error_model="numpy")
+def _time_copy(pos, vel, calls, work_pos, work_vel):
+    """The state's copy that each timed contact stage starts from."""
+    for _ in range(calls):
+        work_pos[:] = pos
+        work_vel[:] = vel
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _time_self_stage(pos, vel, dv, mass, radius, contact, dt, t, calls, work_pos, work_vel):
+    for _ in range(calls):
+        work_pos[:] = pos
+        work_vel[:] = vel
+        self_stage(work_pos, work_vel, dv, mass, radius, contact, dt, t)
+
+
+STEP_SPAN = 0.5
+"""Simulated time [s] over which the whole step is timed, the run loop as a run takes it."""
+
+
+def step_parts(e, state) -> dict:
+    """At the engine's state: the two contact stages, each timed from a copy of the state
+    (the copy's own time taken off), and then the whole step: the engine advanced over
+    :data:`STEP_SPAN` (the compiled loop, its returns to Python for the debris' dynamics,
+    no recording) [us]."""
+    a, c, dv, t = e.arrays, e.contact.arrays, e.step_work.dv, state.time
+    pos, vel = state.position.copy(), state.velocity.copy()
+    work = (np.empty_like(pos), np.empty_like(vel))
+    copy = best_us(lambda k: _time_copy(pos, vel, k, *work), 1000)
+    debris = best_us(lambda k: debris_stage_calls(pos, vel, dv, a.mass, a.radius, a.fixed, c,
+                                                  e.dt, t, k, *work), 1000)
+    self_ = best_us(lambda k: _time_self_stage(pos, vel, dv, a.mass, a.radius, c, e.dt, t, k,
+                                               *work), 1000)
+    steps, iterations, start = e.steps, int(e.work.cg_iterations[0]), time.perf_counter()
+    e.advance(state, t + STEP_SPAN)
+    wall, steps = time.perf_counter() - start, e.steps - steps
+    return {"debris_stage_us": debris - copy, "self_stage_us": self_ - copy,
+            "self_contact_pairs": int(c.pair_meta[0]),
+            "cg_iterations_per_step": (int(e.work.cg_iterations[0]) - iterations) / steps,
+            "step_us": 1e6 * wall / steps}
+
+
 def _sums(a, count, calls):
     """``calls`` sums of a[:count], in order (compiled as :data:`_chain`) or with the
     additions free to be reordered, vectorized (:data:`_reordered`)."""
@@ -137,13 +188,18 @@ class GridParts(At):
         measured = bounds(traffic, count)
         floor = {"traffic_us": traffic / measured["bandwidth_GB_s"] * 1e-3,
                  "two_sums_us": 2 * measured["sequential_sum_us"]}
-        return {
+        factor = best_us(lambda k: _time_factor(g, k))
+        taken = {
             "t_s": state.time, "nodes": count, "row_length": length,
-            "cg_iterations_per_step": per_step,
-            "factor_us": best_us(lambda k: _time_factor(g, k)),
+            "cg_iterations_per_step": per_step, "factor_us": factor,
             "iteration_parts_us": parts, "iteration_us": iteration,
             "iteration_bytes": traffic, "bounds": measured, "iteration_floor_us": floor,
             "cg_per_step_us": iteration * per_step}
+        step = step_parts(e, state)  # (last: it advances the run)
+        step["cg_us"] = iteration * step["cg_iterations_per_step"] + factor
+        step["rest_us"] = (step["step_us"] - step["cg_us"] - step["debris_stage_us"]
+                           - step["self_stage_us"])
+        return {**taken, "step": step}
 
 
 class PairSystemAt(At):

@@ -44,7 +44,8 @@ class Snapshot(At):
 
 
 @nb.njit(cache=True)
-def _calls(pos, vel, dv, mass, radius, fixed, contact, dt, t, calls, work_pos, work_vel):
+def debris_stage_calls(pos, vel, dv, mass, radius, fixed, contact, dt, t, calls, work_pos,
+                       work_vel):
     """``calls`` debris stages, each from the snapshot's (pos, vel)."""
     for _ in range(calls):
         work_pos[:] = pos
@@ -94,9 +95,9 @@ def main() -> None:
         for name, value in (("off", 0.0), ("on", skin)):
             c.params[1] = value
             c.clear[:] = -np.inf
-            _calls(*call, 1, *work)  # (compiles once; fills the cache)
+            debris_stage_calls(*call, 1, *work)  # (compiles once; fills the cache)
             start = time.perf_counter()
-            _calls(*call, CALLS, *work)
+            debris_stage_calls(*call, CALLS, *work)
             walls[name].append((time.perf_counter() - start) / CALLS)
     kinds = np.empty(s["pos"].shape[0], dtype=np.int64)
     _kinds(s["pos"], s["vel"], s["dv"], s["radius"], s["fixed"], c, s["dt"], kinds)
