@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import os
 import signal
@@ -15,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.capture_score import ScoreGeometry, interior_samples
-from ..analysis.stability import Limits, analytical_limits
+from ..analysis.stability import Limits, analytical_limits, cable_rates
 from ..common import interrupt
 from ..common.errors import BulletnetError, DivergenceError, ScenarioError
 from ..engines import make_engine
@@ -201,6 +202,9 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         observer.start(view)
     limit = speed_limit(scenario, state)
     start_position = state.position.copy()
+    # the last finite frame's time, positions and cables' rest lengths (with cables only)
+    finite_time, finite_position = state.time, start_position.copy()
+    finite_rest = engine.cables.rest.copy()
     status, message, error = "running", "", None
     start = _time.perf_counter()
     try:
@@ -210,11 +214,17 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             engine.advance(state, float(t))
             reason = _check(state, limit)
             if reason:
-                raise _divergence(reason, state, engine.dt, engine.integrator,
-                                  analytical_limits(model, start_position,
-                                                    scenario.bending.enabled),
+                limits = analytical_limits(model, start_position, scenario.bending.enabled)
+                if model.cable_count:  # the cables at the last finite frame, as reeled in
+                    omega, gamma = cable_rates(model, finite_position, finite_rest)
+                    limits = dataclasses.replace(limits, cable_omega=omega, cable_gamma=gamma,
+                                                 cable_time=finite_time)
+                raise _divergence(reason, state, engine.dt, engine.integrator, limits,
                                   scenario.contact.enabled
                                   and scenario.contact.model == "exact")
+            if model.cable_count:
+                finite_time, finite_position[:] = state.time, state.position
+                finite_rest[:] = engine.cables.rest
             interrupt.check()  # a stop request the signal's own exception lost
             stop = take_frame()
             if progress is not None:
