@@ -108,6 +108,9 @@ class RigidDebris:
         """PyBullet's id of this world: :meth:`step` calls the module's functions with it, as
         the client does, without the client's lookup of each function at each call."""
         self._step = None
+        self._com = self.client.getBasePositionAndOrientation(self.body)[0]
+        """The body's centre of mass [m] as PyBullet last reported it (nothing else moves
+        the body: :meth:`step` keeps it)."""
 
     def step(self, impulse: np.ndarray, interval: float, state: np.ndarray) -> None:
         """Apply ``impulse`` (6,) (force [N s], moment about the centre of mass [N m s],
@@ -118,14 +121,14 @@ class RigidDebris:
             pb.setPhysicsEngineParameter(fixedTimeStep=interval, numSubSteps=0,
                                          physicsClientId=world)
             self._step = interval
-        com, _ = pb.getBasePositionAndOrientation(body, physicsClientId=world)
-        pb.applyExternalForce(body, -1, (impulse[:3] / interval).tolist(), com, pb.WORLD_FRAME,
-                              physicsClientId=world)
+        pb.applyExternalForce(body, -1, (impulse[:3] / interval).tolist(), self._com,
+                              pb.WORLD_FRAME, physicsClientId=world)
         pb.applyExternalTorque(body, -1, (impulse[3:] / interval).tolist(), pb.WORLD_FRAME,
                                physicsClientId=world)
         pb.stepSimulation(physicsClientId=world)
-        com, q = pb.getBasePositionAndOrientation(body, physicsClientId=world)
-        write_state(state, self.debris, com, q, *pb.getBaseVelocity(body, physicsClientId=world))
+        self._com, q = pb.getBasePositionAndOrientation(body, physicsClientId=world)
+        write_state(state, self.debris, self._com, q,
+                    *pb.getBaseVelocity(body, physicsClientId=world))
 
     def close(self) -> None:
         self.client.disconnect()
