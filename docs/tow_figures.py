@@ -35,7 +35,8 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    tables = {label: list(csv.DictReader((RESULTS / name).open()))
+    tables = {label: [row for row in csv.DictReader((RESULTS / name).open())
+                      if row["status"] == "completed"]  # (a diverged run has no measures)
               for label, name in STUDIES.items()}
     fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.4))
     for k, ((label, rows), marker) in enumerate(zip(tables.items(), ("o", "x", "s"),

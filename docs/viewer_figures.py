@@ -18,12 +18,12 @@ held in the cinched nets (the cables drawn with the threads),
     bulletnet run capture_closing --bending --out closing_bending.h5
     python docs/viewer_figures.py closing closing_plain.h5 closing_bending.h5
 
-and docs/figures/viewer_removal.png from a removal run of 70 s at the largest tension of the
+and docs/figures/viewer_removal.png from the removal run at the largest tension of the
 tether at the chaser during the tow (:func:`bulletnet.analysis.metrics.tow_series`; the script
 prints its time), with the tow panel,
 
-    bulletnet run removal --duration 70 --record-rate 10 --out removal70.h5
-    python docs/viewer_figures.py removal removal70.h5
+    bulletnet run removal --out removal.h5
+    python docs/viewer_figures.py removal removal.h5
 
 and docs/figures/viewer_breaking.png from the deployment with breakage at 2.1 s, its failed
 threads drawn as red stubs,
