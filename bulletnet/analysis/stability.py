@@ -19,12 +19,16 @@ it, it is a lower bound of the net's limit (exact when C is proportional to K, a
 paper's axial dampers ``c_a = 2 xi_a k_a / omega_ref``). Linearly implicit Euler is A-stable on
 the linearised threads: it has no step limit.
 
-A closing cable adds rank-one blocks ``k g g^T`` and ``c g g^T`` (:func:`cable_rates`), whose
-one eigenvalue depends on the configuration as the threads' do not: ``g^T M^-1 g`` grows as
-the cable folds through its rings. The limits add the fastest cable's rates to the threads'
-maxima (the largest eigenvalue of a sum is at most the sum of theirs). A run that diverges
-names the cables' damper limit at its last finite frame: in a cinched bag it can fall far
-below the threads' (docs/tow.md, "The cinched cables' dampers").
+A closing cable adds rank-one blocks ``k g g^T`` and ``c g g^T``, whose one eigenvalue
+depends on the configuration as the threads' do not: ``g^T M^-1 g`` grows as the cable folds
+through its rings (:func:`cable_frequency`). Its damper relaxes over the step on the explicit
+integrators (:mod:`bulletnet.solver.exponential_damping`): in a cinched bag its rate c g^T M^-1
+g outruns every thread's (docs/tow.md, "The cinched cables' dampers"), and explicit it would
+set the step. On its own mode the relaxed damper's factor is a = exp(-h c g^T M^-1 g) in [0, 1]
+and the step is stable while ``h^2 omega_c^2 < 2 (1 + a)``, at least ``sqrt(2) / omega_c``.
+The limits add the fastest cable's ``omega_c^2`` to the threads' ``omega_max^2`` (the largest
+eigenvalue of a sum is at most the sum of theirs). A run that diverges names the cables'
+limit at its last finite frame.
 
 Exponential Euler (:mod:`bulletnet.solver.exponential_damping`) is symplectic Euler with the
 dampers' coefficients set for the step so that each relaxes its thread's rate without
@@ -68,10 +72,8 @@ class Limits:
     """Bound on the fastest rotational damping rate on the bending springs [1/s] (0: none)."""
     cable_omega: float = 0.0
     """Fastest closing cable's frequency sqrt(k g^T M^-1 g) [rad/s] (0: none)."""
-    cable_gamma: float = 0.0
-    """Fastest closing cable's damper rate c g^T M^-1 g [1/s] (0: none)."""
     cable_time: float = 0.0
-    """Time of the state the cables' rates were taken at [s]."""
+    """Time of the state the cables' frequency was taken at [s]."""
 
     @property
     def stiffness_limit(self) -> float:
@@ -84,17 +86,20 @@ class Limits:
         return 2.0 / self.gamma_max if self.gamma_max > 0 else math.inf
 
     @property
-    def cable_damping_limit(self) -> float:
-        """2 / cable_gamma [s]: the explicit limit of the closing cables' dampers alone."""
-        return 2.0 / self.cable_gamma if self.cable_gamma > 0 else math.inf
+    def cable_limit(self) -> float:
+        """sqrt(2) / cable_omega [s]: the limit of the closing cables alone, their dampers
+        relaxed over the step (module doc)."""
+        return math.sqrt(2.0) / self.cable_omega if self.cable_omega > 0 else math.inf
 
     @property
     def explicit_limit(self) -> float:
-        """4 / (gamma + sqrt(gamma^2 + 4 omega^2)) [s]: symplectic Euler's limit on the threads
-        and the closing cables, with gamma = gamma_max + cable_gamma and omega^2 = omega_max^2
-        + cable_omega^2 (the eigenvalues of a sum at most the sum of theirs: a lower bound)."""
-        return _explicit_step(self.gamma_max + self.cable_gamma,
-                              math.hypot(self.omega_max, self.cable_omega))
+        """4 / (gamma_max + sqrt(gamma_max^2 + 4 omega^2)) [s], omega^2 = omega_max^2 +
+        cable_omega^2, and with closing cables at most the relaxed limit (their dampers relax):
+        symplectic Euler's limit on the threads and the cables (the eigenvalues of a sum at
+        most the sum of theirs: a lower bound)."""
+        cables = self.relaxed_limit if self.cable_omega > 0 else math.inf
+        return min(_explicit_step(self.gamma_max, math.hypot(self.omega_max, self.cable_omega)),
+                   cables)
 
     @property
     def bending_limit(self) -> float:
@@ -131,8 +136,8 @@ class Limits:
             return (f"the analytical limit of {integrator} on this net is "
                     f"{self.for_integrator(integrator):.3g} s (stiffness sqrt(2)/omega_max = "
                     f"{self.relaxed_limit:.3g} s, the dampers relaxed exactly{bending})")
-        cables = (f", the closing cables' dampers at t = {self.cable_time:.6g} s 2/gamma_c = "
-                  f"{self.cable_damping_limit:.3g} s" if self.cable_gamma > 0 else "")
+        cables = (f", the closing cables at t = {self.cable_time:.6g} s sqrt(2)/omega_c = "
+                  f"{self.cable_limit:.3g} s" if self.cable_omega > 0 else "")
         return (f"the analytical limit of {integrator} on this net is "
                 f"{self.for_integrator(integrator):.3g} s (damping 2/gamma_max = "
                 f"{self.damping_limit:.3g} s{cables}, stiffness 2/omega_max = "
@@ -186,20 +191,21 @@ def _largest_eigenvalue(model: NetModel, position: np.ndarray, weight: np.ndarra
     return float(eigsh(sym, k=1, which="LA", return_eigenvectors=False, tol=1e-6)[0])
 
 
-def cable_rates(model: NetModel, position: np.ndarray,
-                rest: np.ndarray | None = None) -> tuple[float, float]:
-    """The fastest closing cable's (frequency [rad/s], damper rate [1/s]) at ``position`` [m]
+def cable_frequency(model: NetModel, position: np.ndarray,
+                    rest: np.ndarray | None = None) -> float:
+    """The fastest closing cable's frequency sqrt(k g^T M^-1 g) [rad/s] at ``position`` [m]
     (N, 3) with rest lengths ``rest`` [m] (C,) (the model's if None): a cable's tension acts
-    along g, g_v = dL/dx_v (:mod:`bulletnet.kernels.cable`), so its blocks k g g^T and
-    c g g^T are rank one, with the one eigenvalue k g^T M^-1 g and c g^T M^-1 g (the
-    geometric stiffness across its spans left out). g^T M^-1 g = sum_v |g_v|^2 / m_v grows as
-    the cable folds through its rings (|g_v| = 2 at a hairpin): a cinched bag's cables can be
-    far faster than the straight ones at launch. (0, 0) without cables."""
+    along g, g_v = dL/dx_v (:mod:`bulletnet.kernels.cable`), so its stiffness block k g g^T is
+    rank one, with the one eigenvalue k g^T M^-1 g (the geometric stiffness across its spans
+    left out); its damper's rate is c g^T M^-1 g = tau omega_c^2 (c = tau k).
+    g^T M^-1 g = sum_v |g_v|^2 / m_v grows as the cable folds through its rings (|g_v| = 2 at
+    a hairpin): a cinched bag's cables can be far faster than the straight ones at launch.
+    0 without cables."""
     if model.cable_count == 0:
-        return 0.0, 0.0
+        return 0.0
     rest = model.cable_rest_length if rest is None else rest
     weight = np.where(model.fixed, 0.0, 1.0 / model.mass)
-    omega2 = gamma = 0.0
+    omega2 = 0.0
     for c in range(model.cable_count):
         nodes = model.cable_nodes[model.cable_start[c]:model.cable_start[c + 1]]
         span = np.diff(position[nodes], axis=0)
@@ -210,14 +216,13 @@ def cable_rates(model: NetModel, position: np.ndarray,
         share = float(np.sum(weight * np.einsum("ij,ij->i", g, g)))
         k = model.cable_rigidity[c] / rest[c]
         omega2 = max(omega2, k * share)
-        gamma = max(gamma, model.cable_damping_time[c] * k * share)
-    return math.sqrt(omega2), gamma
+    return math.sqrt(omega2)
 
 
 def analytical_limits(model: NetModel, position: np.ndarray, bending: bool = False) -> Limits:
     """Step limits of the net with every thread taut along its direction at ``position`` [m],
     shape (N, 3) (the initial state's directions are the deployed net's), the closing cables
-    at their rest lengths there (:func:`cable_rates`); with ``bending``, the bending
+    at their rest lengths there (:func:`cable_frequency`); with ``bending``, the bending
     impulses' limit too."""
     omega2 = _largest_eigenvalue(model, position, model.axial_stiffness)
     gamma = _largest_eigenvalue(model, position, model.axial_damping)
@@ -228,10 +233,9 @@ def analytical_limits(model: NetModel, position: np.ndarray, bending: bool = Fal
         damping, frequency2 = rotational_rates(model)
         bending_gamma = 2.0 * float(damping.max())
         bending_omega = math.sqrt(2.0 * float(frequency2.max()))
-    cable_omega, cable_gamma = cable_rates(model, position)
     return Limits(omega_max=math.sqrt(max(omega2, 0.0)), gamma_max=max(gamma, 0.0),
                   bending_omega=bending_omega, bending_gamma=bending_gamma,
-                  cable_omega=cable_omega, cable_gamma=cable_gamma)
+                  cable_omega=cable_frequency(model, position))
 
 
 def scene_limits(scenario: Scenario) -> Limits:

@@ -154,8 +154,7 @@ class Engine(ABC):
         self.damping_factor = np.ones(model.thread_count)
         """Each thread's damping over the model's, c_eff / c [-], shape (P,): 1 but on
         ``exponential_euler`` (:mod:`bulletnet.solver.exponential_damping`)."""
-        if self.integrator == EXPONENTIAL:
-            self._set_damping()
+        self._set_damping()
 
     def base_forces(self) -> np.ndarray:
         """The forces that do not depend on the state, gravity, the model's loads and the
@@ -268,24 +267,29 @@ class Engine(ABC):
         sim = dataclasses.replace(sim, integrator=integrator or sim.integrator,
                                   dt=dt or sim.dt)
         self.scenario = dataclasses.replace(self.scenario, simulation=sim)
-        if self.integrator == EXPONENTIAL or self.damping_factor.min() < 1.0:
-            self._set_damping()
+        self._set_damping()
         if self.bending and not self.scenario.bending.every:
             self.bending_every = bending_interval(self.model, self.dt,
                                                   BENDING_MARGINS[self.integrator])
 
     def _set_damping(self) -> None:
-        """The threads' damping for the integrator and step in force: exponential Euler's
-        c_eff (:func:`~bulletnet.solver.exponential_damping.damping_ratio`) or the model's."""
+        """The dampers for the integrator and step in force
+        (:mod:`bulletnet.solver.exponential_damping`): on the explicit integrators the closing
+        cables' dampers relax over the step, from their vertices' shares d / m of their
+        nodes' dampers (``CableArrays.share``), and on ``exponential_euler`` the threads' too
+        (their c_eff, :func:`~bulletnet.solver.exponential_damping.damping_ratio`); on
+        implicit Euler the model's dampers, in the solve."""
         a = self.arrays
         c = a.c_a / self.damping_factor  # the model's (a failed thread's stays 0)
         cables = None if a.cables is None else a.cables.nodes
-        share = (node_shares(c, a.pairs, a.mass, a.fixed, cables)
-                 if self.integrator == EXPONENTIAL else np.zeros_like(a.mass))
-        factor = damping_ratio(c, a.pairs, share, self.dt)
-        self._scale_damping(factor / self.damping_factor)
-        self.damping_factor = factor
-        if cables is not None:  # the cables' dampers relax with the step's own g
+        share = (np.zeros_like(a.mass) if self.implicit
+                 else node_shares(c, a.pairs, a.mass, a.fixed, cables))
+        factor = (damping_ratio(c, a.pairs, share, self.dt) if self.integrator == EXPONENTIAL
+                  else np.ones_like(c))
+        if not np.array_equal(factor, self.damping_factor):
+            self._scale_damping(factor / self.damping_factor)
+            self.damping_factor = factor
+        if cables is not None:
             a.cables.share[:] = share[cables]
 
     def _scale_damping(self, factor: np.ndarray) -> None:

@@ -17,7 +17,9 @@ internal (sum_v g_v = 0): momentum is conserved.
 Implicit Euler takes the cable implicitly, as the threads: its block in
 dt dF/dv + dt^2 dF/dx is (dt c + dt^2 k) g g^T (rank one over all its vertices) plus, per
 span, the geometric stiffness dt^2 k max(L - L_0, 0) / l_j (I - e_j e_j^T) between the span's
-two vertices (the threads' ``across`` block, with no ``along`` part).
+two vertices (the threads' ``across`` block, with no ``along`` part). The explicit
+integrators relax the cable's damper over the step instead (``share``,
+:mod:`bulletnet.solver.exponential_damping`).
 
 A winch shortens L_0 at the reel speed while the tension is below its stall tension (it holds
 at stall and reels on when the tension drops). The damper acts on the cable's strain rate,
@@ -84,9 +86,9 @@ class CableArrays(NamedTuple):
     """Implicit rank-one coefficient dt c + dt^2 k [kg] of each cable, shape (C,); 0 when
     slack."""
     share: np.ndarray
-    """Each vertex's node's share d / m [1/kg] of its dampers' relaxation, shape (V,)
-    (exponential Euler, :mod:`bulletnet.solver.exponential_damping`); 0: the damper is
-    symplectic Euler's."""
+    """Each vertex's node's share d / m [1/kg] of its dampers' relaxation, shape (V,): the
+    cable's damper relaxes over the step (the explicit integrators,
+    :mod:`bulletnet.solver.exponential_damping`); 0 on implicit Euler (in the solve)."""
 
 
 def cable_arrays(nodes: np.ndarray, start: np.ndarray, rest: np.ndarray, rigidity: np.ndarray,

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis.capture_score import ScoreGeometry, interior_samples
-from ..analysis.stability import Limits, analytical_limits, cable_rates
+from ..analysis.stability import Limits, analytical_limits, cable_frequency
 from ..common import interrupt
 from ..common.errors import BulletnetError, DivergenceError, ScenarioError
 from ..engines import make_engine
@@ -216,8 +216,8 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
             if reason:
                 limits = analytical_limits(model, start_position, scenario.bending.enabled)
                 if model.cable_count:  # the cables at the last finite frame, as reeled in
-                    omega, gamma = cable_rates(model, finite_position, finite_rest)
-                    limits = dataclasses.replace(limits, cable_omega=omega, cable_gamma=gamma,
+                    omega = cable_frequency(model, finite_position, finite_rest)
+                    limits = dataclasses.replace(limits, cable_omega=omega,
                                                  cable_time=finite_time)
                 raise _divergence(reason, state, engine.dt, engine.integrator, limits,
                                   scenario.contact.enabled

@@ -35,6 +35,14 @@ rate of its length L' = sum_v g_v . v_v (g_v = dL/dx_v), relaxes the same way, w
 (:func:`bulletnet.kernels.cable.cable_forces`, from the vertices' shares
 ``CableArrays.share``; a node that a cable passes twice counted per pass). The bending
 springs' dampers stay explicit (their own limit, :mod:`bulletnet.analysis.stability`).
+
+Symplectic Euler relaxes the closing cables' dampers the same way, from the same shares,
+and keeps the threads' explicit: a cable folded through its rings (|g_v| = 2 at each) damps
+at a rate c sum_v |g_v|^2 / m_v that in a cinched bag outruns every thread's (docs/tow.md,
+"The cinched cables' dampers"). With the shares, each of a node's dampers acts on its own
+d-th of the node's mass: a relaxed one never overshoots, an explicit thread damper does not
+while c h (d_i / m_i + d_j / m_j) <= 2, about symplectic Euler's own damping limit on the
+threads, so the dampers together still only dissipate there.
 """
 
 from __future__ import annotations
