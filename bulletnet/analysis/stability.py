@@ -24,8 +24,9 @@ depends on the configuration as the threads' do not: ``g^T M^-1 g`` grows as the
 through its rings (:func:`cable_frequency`). Its damper relaxes over the step on the explicit
 integrators (:mod:`bulletnet.solver.exponential_damping`): in a cinched bag its rate c g^T M^-1
 g outruns every thread's (docs/tow.md, "The cinched cables' dampers"), and explicit it would
-set the step. On its own mode the relaxed damper's factor is a = exp(-h c g^T M^-1 g) in [0, 1]
-and the step is stable while ``h^2 omega_c^2 < 2 (1 + a)``, at least ``sqrt(2) / omega_c``.
+set the step. On its own mode the relaxed damper's factor is a = exp(-x) in [0, 1] (x = h c
+g^T M^-1 g where no other damper meets its nodes, more where others share their masses) and
+the step is stable while ``h^2 omega_c^2 < 2 (1 + a)``, at least ``sqrt(2) / omega_c``.
 The limits add the fastest cable's ``omega_c^2`` to the threads' ``omega_max^2`` (the largest
 eigenvalue of a sum is at most the sum of theirs). A run that diverges names the cables'
 limit at its last finite frame.
