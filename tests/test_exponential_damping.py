@@ -123,6 +123,28 @@ def test_the_tow_switches_to_exponential_euler_and_back():
     np.testing.assert_allclose(engine.arrays.c_a, c, rtol=1e-14)
 
 
+def test_the_closing_cables_dampers_relax_on_both_explicit_integrators():
+    # Reference: the shares' definition (node_shares, above). On implicit Euler the cables'
+    # dampers are in the solve (shares 0); on symplectic Euler they relax over the step from
+    # the nodes' shares d / m (the threads' own dampers unchanged, explicit); on exponential
+    # Euler from the same shares, beside the threads' c_eff.
+    s = small_tow(**{"closing.enabled": True})
+    model = bn.build_model(s)
+    engine = make_engine(s, model)
+    cables, c = engine.arrays.cables, engine.arrays.c_a.copy()
+    shares = node_shares(c, model.pairs, model.mass, model.fixed, cables.nodes)[cables.nodes]
+    assert shares.all() and engine.implicit and not cables.share.any()
+    engine.switch_integrator("symplectic_euler", 1e-5)
+    np.testing.assert_array_equal(cables.share, shares)
+    np.testing.assert_array_equal(engine.arrays.c_a, c)
+    engine.switch_integrator("exponential_euler", 1e-4)
+    np.testing.assert_array_equal(cables.share, shares)
+    assert (engine.arrays.c_a < c).any()
+    engine.switch_integrator("implicit_euler", 1e-4)
+    assert not cables.share.any()
+    np.testing.assert_allclose(engine.arrays.c_a, c, rtol=1e-14)
+
+
 def test_a_reel_refuses_exponential_euler():
     with pytest.raises(bn.ScenarioError, match="reel"):
         small_tow(**{"reel.enabled": True, "reel.speed": 0.1,
