@@ -278,12 +278,13 @@ class Engine(ABC):
         cables' dampers relax over the step, from their vertices' shares d / m of their
         nodes' dampers (``CableArrays.share``), and on ``exponential_euler`` the threads' too
         (their c_eff, :func:`~bulletnet.solver.exponential_damping.damping_ratio`); on
-        implicit Euler the model's dampers, in the solve."""
+        implicit Euler (and the reference engine's integrators) the model's dampers."""
         a = self.arrays
         c = a.c_a / self.damping_factor  # the model's (a failed thread's stays 0)
         cables = None if a.cables is None else a.cables.nodes
-        share = (np.zeros_like(a.mass) if self.implicit
-                 else node_shares(c, a.pairs, a.mass, a.fixed, cables))
+        explicit = self.integrator in ("symplectic_euler", EXPONENTIAL)
+        share = (node_shares(c, a.pairs, a.mass, a.fixed, cables) if explicit
+                 else np.zeros_like(a.mass))
         factor = (damping_ratio(c, a.pairs, share, self.dt) if self.integrator == EXPONENTIAL
                   else np.ones_like(c))
         if not np.array_equal(factor, self.damping_factor):
