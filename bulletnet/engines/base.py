@@ -282,7 +282,7 @@ class Engine(ABC):
         a = self.arrays
         c = a.c_a / self.damping_factor  # the model's (a failed thread's stays 0)
         cables = None if a.cables is None else a.cables.nodes
-        explicit = self.integrator in ("symplectic_euler", EXPONENTIAL)
+        explicit = integrators.INTEGRATOR_IDS.get(self.integrator) == integrators.SYMPLECTIC_EULER
         share = (node_shares(c, a.pairs, a.mass, a.fixed, cables) if explicit
                  else np.zeros_like(a.mass))
         factor = (damping_ratio(c, a.pairs, share, self.dt) if self.integrator == EXPONENTIAL
