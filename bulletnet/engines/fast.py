@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..common.direct_call import DirectCall
 from ..kernels.axial import axial_forces
 from ..kernels.peaks import peak_arrays
 from ..model.debris import COM, OMEGA, QUAT, VELOCITY
@@ -30,6 +31,8 @@ class FastEngine(Engine):
         super().__init__(scenario, model)
         self.rigid = None
         """The debris' PyBullet world (created on the first step)."""
+        self._direct: DirectCall | None = None
+        """The compiled loop in use, called directly (:meth:`_loop_call`)."""
         use_grid = (scenario.simulation.kernels == "grid" and self.dt > 0
                     and grid_kernels.applies(model))
         self.grid = (grid_kernels.build(model, self.arrays.cables, self.arrays.orbit,
@@ -152,6 +155,7 @@ class FastEngine(Engine):
         loop = None if free else integrators.advance(on_grid, self.implicit)
         contact_arrays = self.contact_arrays
         debris = state.debris
+        compiled = None  # the loop's compiled version for this call's arguments
         done = 0
         while done < steps:
             todo = min(chunk, steps - done)
@@ -171,13 +175,17 @@ class FastEngine(Engine):
                 self.step_work.step_count[0] += todo
                 taken = todo
             else:
-                taken = loop(self.bending_every, todo, pos, vel, quat, omega, self.arrays,
-                             self.step_work, base, dt, self.cg_tolerance, contact_arrays,
-                             state.time + done * dt, self.grid, self.views, self.breakage,
-                             self.peaks)
+                args = (self.bending_every, todo, pos, vel, quat, omega, self.arrays,
+                        self.step_work, base, dt, self.cg_tolerance, contact_arrays,
+                        state.time + done * dt, self.grid, self.views, self.breakage,
+                        self.peaks)
+                if compiled is None:  # (the arguments' kinds hold until the list grows)
+                    compiled = self._loop_call(loop).resolve(args)
+                taken = compiled(*args)
             if taken < todo:  # the self-contact list is full: grow it, go on
                 self.contact = contact.grow_pair_list(self.contact)
                 a, contact_arrays = self.contact.arrays, self.contact_arrays
+                compiled = None
             if has_debris and taken:
                 if self.arrays.orbit is not None:  # held over the chunk, as the net's impulses
                     a.impulse[:] += taken * dt * orbit_load(self.arrays.orbit, self.debris,
@@ -192,6 +200,14 @@ class FastEngine(Engine):
             self._store_reel()
         self.steps += done
         state.time = t_end
+
+    def _loop_call(self, loop) -> DirectCall:
+        """``loop`` called without numba's dispatch at every chunk (:mod:`bulletnet.common.
+        direct_call`): a capture returns to Python every few steps for the debris'
+        dynamics."""
+        if self._direct is None or self._direct.dispatcher is not loop:
+            self._direct = DirectCall(loop)  # (another integrator: another loop)
+        return self._direct
 
     def _store_reel(self) -> None:
         """Copy the tether's rest lengths, their rates, stiffness and damping, which the reel

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..common.array_cache import cached_arrays
 from ..common.errors import ScenarioError
 from ..common.resources import data_dir
 from .mesh import MESH_SUFFIXES, load_mesh
@@ -297,14 +298,31 @@ def _given_mass_properties(doc: dict, where: str):
     return com, tuple(map(tuple, inertia.tolist()))
 
 
-def make_debris(name: str, parts: tuple[Part, ...]) -> Debris:
-    """A :class:`Debris` of ``parts`` with its computed mass properties."""
+def _solid_properties(parts: tuple[Part, ...]) -> dict[str, np.ndarray]:
+    """:func:`mass_properties` of ``parts`` (mass [kg] (), centre of mass [m] (3,), inertia
+    [kg m^2] (3, 3)) and the edge lengths of their body-frame bounding box [m] (3,)."""
     mass, com, inertia = mass_properties(parts)
-    moments, axes = principal_frame(inertia)
     vertices = np.vstack([part_mesh(p).vertices for p in parts])
-    return Debris(name=name, parts=parts, mass=mass, center_of_mass=com, inertia=inertia,
-                  principal_moments=moments, principal_axes=axes,
-                  extents=vertices.max(axis=0) - vertices.min(axis=0))
+    return {"mass": np.array(mass), "center_of_mass": com, "inertia": inertia,
+            "extents": vertices.max(axis=0) - vertices.min(axis=0)}
+
+
+def _kept(what: str, parts: tuple[Part, ...], compute) -> dict[str, np.ndarray]:
+    """``compute()``'s arrays, of ``what`` of ``parts``: kept on disk if the parts are all
+    primitives (:mod:`bulletnet.common.array_cache`; a mesh part's file may change under its
+    name), else computed."""
+    if any(p.shape == "mesh" for p in parts):
+        return compute()
+    return cached_arrays(f"{what} {parts!r}", compute)
+
+
+def make_debris(name: str, parts: tuple[Part, ...]) -> Debris:
+    """A :class:`Debris` of ``parts`` with its computed mass properties (:func:`_kept`)."""
+    solid = _kept(f"solid {SECTIONS}", parts, functools.partial(_solid_properties, parts))
+    moments, axes = principal_frame(solid["inertia"])
+    return Debris(name=name, parts=parts, mass=float(solid["mass"]),
+                  center_of_mass=solid["center_of_mass"], inertia=solid["inertia"],
+                  principal_moments=moments, principal_axes=axes, extents=solid["extents"])
 
 
 @functools.lru_cache(maxsize=8)
@@ -404,11 +422,20 @@ def body_origin(state: np.ndarray, debris: Debris) -> np.ndarray:
     return state[COM] - rotation_matrix(state[QUAT]) @ debris.center_of_mass
 
 
-def visual_mesh(debris: Debris, sections: int = 48) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices (V, 3) [m], faces (F, 3)) of the debris' surface in its body frame."""
+def _surface(parts: tuple[Part, ...], sections: int) -> dict[str, np.ndarray]:
+    """The parts' surface in their body frame: vertices (V, 3) [m], faces (F, 3)."""
     import trimesh
 
-    mesh = trimesh.util.concatenate([part_mesh(p, sections) for p in debris.parts])
-    return np.asarray(mesh.vertices), np.asarray(mesh.faces, dtype=np.int64)
+    mesh = trimesh.util.concatenate([part_mesh(p, sections) for p in parts])
+    return {"vertices": np.asarray(mesh.vertices),
+            "faces": np.asarray(mesh.faces, dtype=np.int64)}
+
+
+def visual_mesh(debris: Debris, sections: int = 48) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (V, 3) [m], faces (F, 3)) of the debris' surface in its body frame
+    (:func:`_kept`)."""
+    mesh = _kept(f"surface {sections}", debris.parts,
+                 functools.partial(_surface, debris.parts, sections))
+    return mesh["vertices"], mesh["faces"]
 
 
