@@ -135,13 +135,27 @@ def block_product(d0, d1, d2, along, across, e0, e1, e2):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
+def block_entry(m, g, across, ea, eb, diagonal):
+    """m + entry (a, b) of a thread's implicit block (along - across) e e^T + across I [kg],
+    from g = along - across [kg], across [kg] and e's components a and b; ``diagonal``:
+    a == b."""
+    return m + g * ea * eb + across if diagonal else m + g * ea * eb
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def add_block(m, along, across, ex, ey, ez):
     """m + a thread's implicit block, (along - across) e e^T + across I [kg], with m a 3 x 3
-    matrix as a row-major 9-tuple."""
+    matrix as a row-major 9-tuple (:func:`block_entry` by entry)."""
     g = along - across
-    return (m[0] + g * ex * ex + across, m[1] + g * ex * ey, m[2] + g * ex * ez,
-            m[3] + g * ey * ex, m[4] + g * ey * ey + across, m[5] + g * ey * ez,
-            m[6] + g * ez * ex, m[7] + g * ez * ey, m[8] + g * ez * ez + across)
+    return (block_entry(m[0], g, across, ex, ex, True),
+            block_entry(m[1], g, across, ex, ey, False),
+            block_entry(m[2], g, across, ex, ez, False),
+            block_entry(m[3], g, across, ey, ex, False),
+            block_entry(m[4], g, across, ey, ey, True),
+            block_entry(m[5], g, across, ey, ez, False),
+            block_entry(m[6], g, across, ez, ex, False),
+            block_entry(m[7], g, across, ez, ey, False),
+            block_entry(m[8], g, across, ez, ez, True))
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")

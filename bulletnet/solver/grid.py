@@ -37,6 +37,7 @@ from ..kernels.axial import (
     add_thread_rhs,
     axial_forces,
     axial_linearization,
+    block_entry,
     block_product,
     invert3,
     tension_law,
@@ -507,15 +508,27 @@ def _apply(grid, rows, out):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _add_thread_block(m, blocks, row, axis, col):
-    """m + the implicit block of the thread at column ``col`` of blocks[row], axis (its
-    along, across, e), or m itself for a slack thread (its terms are zeroed, not skipped,
-    so that the loop over nodes has no branch; m + 0.0 is m)."""
+def _thread_entry(m, blocks, row, axis, col, a, b):
+    """m + entry (a, b) of the implicit block of the thread at column ``col`` of blocks[row],
+    axis (its along, across, e), or m itself for a slack thread (its terms are zeroed, not
+    skipped, so that the loop over nodes has no branch; m + 0.0 is m)."""
     on = blocks[row, col] != 0.0
     along = blocks[row, col] if on else 0.0
     across = blocks[row + ONE, col] if on else 0.0
-    return add_block(m, along, across, axis[0, col] if on else 0.0,
-                     axis[1, col] if on else 0.0, axis[2, col] if on else 0.0)
+    return block_entry(m, along - across, across, axis[a, col] if on else 0.0,
+                       axis[b, col] if on else 0.0, a == b)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _block_entry(grid, i, ns, a, b):
+    """Entry (a, b) of node i's 3 x 3 diagonal block [kg]: its mass on the diagonal, plus its
+    four grid threads' blocks in the pair-list order, v(i - Ns), h(i - 1), h(i), v(i)."""
+    blocks, eh, ev = grid.blocks, grid.eh, grid.ev
+    m = grid.mass[i] if a == b else 0.0
+    m = _thread_entry(m, blocks, U(2), ev, i, a, b)
+    m = _thread_entry(m, blocks, U(0), eh, ns + i - ONE, a, b)
+    m = _thread_entry(m, blocks, U(0), eh, ns + i, a, b)
+    return _thread_entry(m, blocks, U(2), ev, ns + i, a, b)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -532,14 +545,20 @@ def _block_jacobi(grid):
     """Each node's 3 x 3 diagonal block of the implicit system, inverted, into block_inv (the
     preconditioner of :func:`bulletnet.solver.pcg.solve`)."""
     ns, n, count, mass, inv = U(grid.ns), U(grid.n), U(grid.count), grid.mass, grid.block_inv
-    blocks, eh, ev = grid.blocks, grid.eh, grid.ev
-    for i in range(n):  # v(i - Ns), h(i - 1), h(i), v(i): the pair-list order
-        m = (mass[i], 0.0, 0.0, 0.0, mass[i], 0.0, 0.0, 0.0, mass[i])
-        m = _add_thread_block(m, blocks, U(2), ev, i)
-        m = _add_thread_block(m, blocks, U(0), eh, ns + i - ONE)
-        m = _add_thread_block(m, blocks, U(0), eh, ns + i)
-        m = _add_thread_block(m, blocks, U(2), ev, ns + i)
-        _store(inv, i, m)
+    # three passes of three entries each: one pass writing all nine rows stayed scalar (too
+    # many rows for LLVM's runtime alias checks; the capture's 441 grid nodes, 4.4 -> 3.6 us)
+    for i in range(n):
+        inv[0, i] = _block_entry(grid, i, ns, U(0), U(0))
+        inv[4, i] = _block_entry(grid, i, ns, U(1), U(1))
+        inv[8, i] = _block_entry(grid, i, ns, U(2), U(2))
+    for i in range(n):
+        inv[1, i] = _block_entry(grid, i, ns, U(0), U(1))
+        inv[2, i] = _block_entry(grid, i, ns, U(0), U(2))
+        inv[5, i] = _block_entry(grid, i, ns, U(1), U(2))
+    for i in range(n):
+        inv[3, i] = _block_entry(grid, i, ns, U(1), U(0))
+        inv[6, i] = _block_entry(grid, i, ns, U(2), U(0))
+        inv[7, i] = _block_entry(grid, i, ns, U(2), U(1))
     for i in range(n, count):
         for a in range(9):
             inv[a, i] = mass[i] if a % 4 == 0 else 0.0
