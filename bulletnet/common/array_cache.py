@@ -1,8 +1,8 @@
 """Arrays too slow to recompute at every start, kept on disk beside the compiled kernels.
 
-A debris' mass properties come from trimesh's solids: trimesh's import (with scipy's) and the
-convex hulls take about 0.7 s of a capture's 1.2 s start (:func:`bulletnet.model.debris.
-make_debris`). They are stored under ``$NUMBA_CACHE_DIR/arrays/`` (:mod:`.kernel_cache`)
+A debris' mass properties come from trimesh's solids: trimesh's import and the convex hulls
+took 0.1-0.2 s of a capture's 1.1 s start (:func:`bulletnet.model.debris.make_debris`; numba
+imports scipy regardless). They are stored under ``$NUMBA_CACHE_DIR/arrays/`` (:mod:`.kernel_cache`)
 named by a digest of what they are computed from, of the package's source and of the
 versions of the libraries that compute them, and read back bit for bit. A folder that cannot
 be written leaves them uncached (computed at every start, as before).
