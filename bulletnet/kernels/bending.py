@@ -223,8 +223,9 @@ def advance_rotation(q, w, gain, torque, held, steps, dt, rotation, turned):
     run only if there are any); then w. Node by node the same arithmetic as one loop calling
     :func:`turn`, so the same bits; that loop stayed scalar (a call in it), 7.2 us a step for
     the capture's 470 nodes. The series' loop vectorizes only as written: reading rows (unit
-    stride: not the (N, 3) torque), writing other arrays than it reads, choosing between
-    values already loaded. (So is the torque read: as rows.)"""
+    stride), writing other arrays than it reads, choosing between values already loaded; the
+    torque is read as rows too (the grid's: 2.9 -> 2.2 us on the capture's state, where
+    (N, 3) was read across its rows)."""
     ramp = 0.5 * steps * (steps + 1) * dt * held
     span = steps * dt
     n = gain.shape[0]
