@@ -10,8 +10,9 @@ import pytest
 from conftest import small_capture, small_tow
 
 import bulletnet as bn
+from bulletnet.common.direct_call import signature
 from bulletnet.engines import make_engine
-from bulletnet.sim.compile_ahead import is_cached, signature
+from bulletnet.sim.compile_ahead import is_cached
 
 
 @pytest.mark.parametrize("overrides", [

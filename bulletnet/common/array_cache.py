@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .kernel_cache import source_digest
+from .kernel_cache import package_digest
 
 
 @functools.cache
@@ -33,7 +33,7 @@ def _versions() -> str:
             versions.append(f"{name} {metadata.version(name)}")
         except metadata.PackageNotFoundError:
             versions.append(f"{name} -")
-    return f"{source_digest()} {' '.join(versions)}"
+    return f"{package_digest()} {' '.join(versions)}"
 
 
 def cached_arrays(what: str, compute: Callable[[], dict[str, np.ndarray]]

@@ -12,7 +12,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numba as nb
 import numpy as np
+
+
+def signature(args: tuple) -> tuple:
+    """numba's argument types of a call with ``args``, as a dispatcher types a call."""
+    return tuple(nb.typeof(a) for a in args)
 
 
 class _Same:
@@ -56,7 +62,6 @@ class DirectCall:
         """The compiled version for ``args`` (looked up again only if their kinds changed)."""
         kinds = tuple(_kind(a) for a in args)
         if self._entry is None or kinds != self._kinds:
-            d = self.dispatcher
-            self._entry = d.compile(tuple(d.typeof_pyval(a) for a in args))
+            self._entry = self.dispatcher.compile(signature(args))
             self._kinds = kinds
         return self._entry

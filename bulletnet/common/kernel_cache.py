@@ -12,6 +12,7 @@ any kernel).
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import os
 import sys
@@ -33,12 +34,18 @@ def source_digest(root: Path = PACKAGE) -> str:
     return digest.hexdigest()[:16]
 
 
+@functools.cache
+def package_digest() -> str:
+    """:func:`source_digest` of the installed package, computed once a process."""
+    return source_digest()
+
+
 def configure() -> None:
     """Point numba's cache at this source's folder, unless the user chose one."""
     if "NUMBA_CACHE_DIR" in os.environ:
         return
     base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    os.environ["NUMBA_CACHE_DIR"] = str(base / "bulletnet" / "numba" / source_digest())
+    os.environ["NUMBA_CACHE_DIR"] = str(base / "bulletnet" / "numba" / package_digest())
     if "numba" in sys.modules:  # imported before us: make it read the variable again
         from numba.core import config
 

@@ -26,15 +26,10 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numba as nb
+from ..common.direct_call import signature
 
 HELPER_TIMEOUT_S = 600.0
 """Longest wait for the second process [s]; past it this process compiles on its own."""
-
-
-def signature(args: tuple) -> tuple:
-    """numba's argument types of a call with ``args``, as a dispatcher types a call."""
-    return tuple(nb.typeof(a) for a in args)
 
 
 def is_cached(dispatcher, args: tuple) -> bool:
