@@ -18,6 +18,7 @@ from bulletnet.analysis.capture_score import (
     enclosed_fraction,
     fibonacci_sphere,
     interior_samples,
+    largest_distance,
     mouth_opening,
 )
 from bulletnet.model.debris import Part, make_debris, rotation_matrix, rotation_quaternion
@@ -118,6 +119,22 @@ def test_mouth_opening_of_a_flat_net_is_one_and_of_a_cinched_one_zero():
     cinched = net.copy()
     cinched[perimeter(ns)] = [0.5, -2.0, 3.0]
     assert mouth_opening(cinched, ns, (ns - 1) * mesh) == 0.0
+
+
+def test_largest_distance_is_scipys_pdist_bit_for_bit():
+    # reference: scipy's pdist, which the mouth opening used before its own loop; the same
+    # distances' bits (the recorded outcomes stay the same), and a non-finite node is NaN
+    from scipy.spatial.distance import pdist
+
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        m = int(rng.integers(2, 90))
+        scale = 10.0 ** rng.uniform(-3, 3)
+        positions = rng.normal(size=(m + 5, 3)) * scale + rng.normal(size=3) * 100 * scale
+        nodes = rng.permutation(m + 5)[:m]
+        assert largest_distance(positions, nodes) == pdist(positions[nodes]).max()
+    positions[nodes[1], 2] = np.nan
+    assert math.isnan(largest_distance(positions, nodes))
 
 
 def judge(frames, **rules) -> OutcomeMonitor:

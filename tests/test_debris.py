@@ -235,3 +235,19 @@ def test_envisat_asset_matches_its_published_envelope():
     np.testing.assert_allclose(axes @ np.diag(envisat.principal_moments) @ axes.T,
                                envisat.inertia, rtol=0, atol=1e-9 * envisat.inertia.max())
     assert np.linalg.det(axes) == pytest.approx(1.0)
+
+
+def test_rotation_matrix_of_one_quaternion_is_the_batched_one_and_scipys():
+    # reference: the batched (numpy) evaluation of the same formula, bit for bit, and scipy's
+    # Rotation to round-off: the single-quaternion path is Python floats for the run's frames
+    from scipy.spatial.transform import Rotation
+
+    from bulletnet.model.debris import rotation_matrix
+
+    q = np.random.default_rng(5).normal(size=(200, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    batched = rotation_matrix(q)
+    for k in range(len(q)):
+        assert np.array_equal(rotation_matrix(q[k]), batched[k])
+    np.testing.assert_allclose(batched, Rotation.from_quat(q).as_matrix(), atol=1e-15)
+    assert np.array_equal(rotation_matrix([0, 0, 0, 1]), np.eye(3))

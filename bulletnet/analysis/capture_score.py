@@ -164,12 +164,30 @@ def _share_inside(points, planes, tolerance):
     return inside / points.shape[0]
 
 
+@nb.njit(cache=True, error_model="numpy")
+def largest_distance(positions, nodes):
+    """Largest distance between two of the nodes ``nodes`` (M,) of ``positions`` (N, 3) [m]
+    [m]; NaN if a position is not finite. Each distance as scipy's ``pdist`` computes it,
+    sqrt(dx^2 + dy^2 + dz^2) summed in that order, and sqrt is monotonic: the same bits as
+    ``pdist(positions[nodes]).max()``, without its import (0.14 s) or its call."""
+    largest, finite = 0.0, True
+    for a in range(nodes.shape[0]):
+        i = nodes[a]
+        x, y, z = positions[i, 0], positions[i, 1], positions[i, 2]
+        for b in range(a + 1, nodes.shape[0]):
+            j = nodes[b]
+            dx, dy, dz = x - positions[j, 0], y - positions[j, 1], z - positions[j, 2]
+            s = dx * dx + dy * dy + dz * dz
+            finite &= s == s
+            largest = s if s > largest else largest
+    return math.sqrt(largest) if finite else math.nan
+
+
 def mouth_opening(positions: np.ndarray, nodes_per_side: int, side: float) -> float:
     """Largest distance between two perimeter nodes of ``positions`` (N, 3) [m] over the
     deployed diagonal sqrt(2) ``side`` [m] [-]."""
-    from scipy.spatial.distance import pdist
-
-    return float(pdist(positions[perimeter(nodes_per_side)]).max()) / (math.sqrt(2.0) * side)
+    return largest_distance(np.ascontiguousarray(positions, dtype=float),
+                            perimeter(nodes_per_side)) / (math.sqrt(2.0) * side)
 
 
 def capture_quality(enclosed: float, mouth: float) -> float:
