@@ -121,10 +121,10 @@ class RigidDebris:
             pb.setPhysicsEngineParameter(fixedTimeStep=interval, numSubSteps=0,
                                          physicsClientId=world)
             self._step = interval
-        pb.applyExternalForce(body, -1, (impulse[:3] / interval).tolist(), self._com,
-                              pb.WORLD_FRAME, physicsClientId=world)
-        pb.applyExternalTorque(body, -1, (impulse[3:] / interval).tolist(), pb.WORLD_FRAME,
-                               physicsClientId=world)
+        load = (impulse / interval).tolist()  # force [N], torque [N m]
+        pb.applyExternalForce(body, -1, load[:3], self._com, pb.WORLD_FRAME,
+                              physicsClientId=world)
+        pb.applyExternalTorque(body, -1, load[3:], pb.WORLD_FRAME, physicsClientId=world)
         pb.stepSimulation(physicsClientId=world)
         self._com, q = pb.getBasePositionAndOrientation(body, physicsClientId=world)
         write_state(state, self.debris, self._com, q,

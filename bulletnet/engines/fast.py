@@ -10,6 +10,8 @@ debris (5 orders of magnitude heavier than a node: its velocity changes little i
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..common.direct_call import DirectCall
@@ -151,6 +153,8 @@ class FastEngine(Engine):
         if on_grid:
             grid_kernels.load(self.grid, state, base)
         pos, vel, quat, omega = self._loop_arrays(state)
+        # every position as one flat array (the grid's rows: their padding stays zero)
+        flat = (self.grid.x if on_grid else pos).reshape(-1)
         free = self.free
         loop = None if free else integrators.advance(on_grid, self.implicit)
         contact_arrays = self.contact_arrays
@@ -193,7 +197,9 @@ class FastEngine(Engine):
                 self.rigid.step(a.impulse, taken * dt, debris)
             done += taken
             self._impulse_time += taken * dt
-            if not np.isfinite(pos).all():
+            # not finite iff a position is not (or |x| > 1e154 m: diverged as well); a third
+            # of np.isfinite's time, a check at each of a capture's 30 000 chunks
+            if not math.isfinite(np.dot(flat, flat)):
                 break
         if on_grid:
             grid_kernels.store(self.grid, state)
