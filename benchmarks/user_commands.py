@@ -5,14 +5,20 @@ overwrite) as a process, in a folder laid out as a clone's, with the kernels alr
 compiled (a short run of each line first: compiling is what ``first_run.py`` measures).
 Before each command the frozen yardstick (``yardstick.py``: a plain compiled loop of the 3 s
 deployment) is timed in this process, so every command's wall time is also given as a ratio
-to the yardstick measured beside it. Writes ``OUT/user_commands.json``:
+to the yardstick measured beside it. With ``--repeats N`` the list runs N times over,
+interleaved, and each command reports the medians of its N walls, loops and ratios (each
+ratio to the yardstick timed just before that run) beside all N. ``--only TEXT`` keeps the
+lines that contain TEXT (repeatable). Writes ``OUT/user_commands.json``, or with ``--only``
+``OUT/user_commands_TEXT.json``:
 
-    python benchmarks/user_commands.py benchmarks/results
+    python benchmarks/user_commands.py benchmarks/results --repeats 1
+    python benchmarks/user_commands.py benchmarks/results --only "capture --bending" --repeats 5
 """
 
 from __future__ import annotations
 
 import json
+import re
 import shlex
 import shutil
 import statistics
@@ -60,11 +66,16 @@ def recording_of(args: list[str], folder: Path) -> Path:
 
 
 def main() -> int:
-    args = parser(__doc__.split("\n\n")[0]).parse_args()
+    p = parser(__doc__.split("\n\n")[0])
+    p.add_argument("--only", action="append", default=[], metavar="TEXT",
+                   help="time only the run lines that contain TEXT (repeatable)")
+    args = p.parse_args()
     out = output_dir(args)
-    lines = readme_run_lines()
-    rows = []
-    yard = []
+    lines = [line for line in readme_run_lines()
+             if not args.only or any(t in shlex.join(line) for t in args.only)]
+    if not lines:
+        raise SystemExit(f"user_commands: no run line of the README contains {args.only}")
+    runs: list[list[dict]] = [[] for _ in lines]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         (folder / "assets").symlink_to(ROOT / "assets")
@@ -73,26 +84,41 @@ def main() -> int:
                        stdout=(folder / "mine.toml").open("w"))
         for line in lines:  # compile every line's kernels first
             run_command([*line, "--duration", "0.01", "--quiet"], folder)
-        for line in lines:
-            wall_yard, _ = yardstick.run()
-            yard.append(wall_yard)
-            wall = run_command(line, folder)
-            with h5py.File(recording_of(line, folder)) as f:
-                loop = float(f.attrs["wall_time_s"])
-                simulated = float(f["time"][-1])
-            rows.append({"command": "bulletnet " + shlex.join(line), "simulated_s": simulated,
-                         "process_wall_s": wall, "loop_wall_s": loop, "yardstick_s": wall_yard,
-                         "ratio_to_yardstick": wall / wall_yard})
-            print(f"{wall:7.1f} s ({wall / wall_yard:5.2f} x the yardstick's {wall_yard:.2f} s)"
-                  f"  loop {loop:7.1f} s  {rows[-1]['command']}", flush=True)
+        for _ in range(args.repeats):  # interleaved: each command beside its own yardstick
+            for line, done in zip(lines, runs, strict=True):
+                wall_yard, _ = yardstick.run()
+                wall = run_command(line, folder)
+                with h5py.File(recording_of(line, folder)) as f:
+                    loop = float(f.attrs["wall_time_s"])
+                    simulated = float(f["time"][-1])
+                done.append({"wall": wall, "loop": loop, "yard": wall_yard,
+                             "simulated": simulated})
+                print(f"{wall:7.1f} s ({wall / wall_yard:5.2f} x the yardstick's "
+                      f"{wall_yard:.2f} s)  loop {loop:7.1f} s  bulletnet {shlex.join(line)}",
+                      flush=True)
+    median = statistics.median
+    rows = [{"command": "bulletnet " + shlex.join(line), "simulated_s": done[0]["simulated"],
+             "process_wall_s": median(r["wall"] for r in done),
+             "loop_wall_s": median(r["loop"] for r in done),
+             "yardstick_s": median(r["yard"] for r in done),
+             "ratio_to_yardstick": median(r["wall"] / r["yard"] for r in done),
+             "process_walls_s": [r["wall"] for r in done],
+             "loop_walls_s": [r["loop"] for r in done],
+             "yardsticks_s": [r["yard"] for r in done],
+             "ratios_to_yardstick": [r["wall"] / r["yard"] for r in done]}
+            for line, done in zip(lines, runs, strict=True)]
+    yard = [r["yard"] for done in runs for r in done]
     result = {"what": "the README's run lines as processes, kernels compiled; each beside a "
-                      "timing of the frozen yardstick (benchmarks/yardstick.py)",
+                      "timing of the frozen yardstick (benchmarks/yardstick.py); medians of "
+                      "interleaved repeats",
               "date": time.strftime("%Y-%m-%d %H:%M"),
               "machine": machine(),
+              "repeats": args.repeats,
               "yardstick": {"sha256": yardstick.file_hash(), "walls_s": yard,
                             "median_s": statistics.median(yard)},
               "commands": rows}
-    path = out / "user_commands.json"
+    slug = "_".join(re.sub(r"[^a-z0-9]+", "_", t.lower()).strip("_") for t in args.only)
+    path = out / (f"user_commands_{slug}.json" if slug else "user_commands.json")
     path.write_text(json.dumps(result, indent=1) + "\n")
     print(f"-> {path}")
     return 0
