@@ -44,10 +44,9 @@ class FastEngine(Engine):
             grid_kernels.scale_damping(self.grid, model.pairs, self.damping_factor)
         self.views = grid_kernels.views(self.grid) if use_grid else None
         """(N, 3) views of the grid's rows (None on the pair-list path)."""
-        self.step_work = (self.work._replace(dv=self.views.dv, torque=self.views.torque)
-                          if use_grid else self.work)
+        self.step_work = self.work._replace(dv=self.views.dv) if use_grid else self.work
         """The workspace the steps use (on the grid: its velocity increment, which the
-        contact stage reads, and its bending torque are the grid's rows)."""
+        contact stage reads, is the grid's rows)."""
         if use_grid:  # the grid threads' running maxima in rows laid out as the grid's
             self.peaks = peak_arrays(model.thread_count, model.cable_count,
                                      self.grid.th.shape[1])
@@ -126,7 +125,8 @@ class FastEngine(Engine):
                 self.base_forces(), self.dt, self.cg_tolerance, self.contact_arrays,
                 0.0, self.grid, self.views, self.breakage, self.peaks))]
         if self.grid is not None and self.bending:
-            groups["bending"] = [(grid_kernels.bending, (self.grid, self.views))]
+            groups["bending"] = [(grid_kernels.bending, (self.grid, self.views,
+                                                         self.work.torque))]
         contact_arrays = self.contact_arrays
         if contact_arrays is not None:
             a = self.arrays

@@ -209,8 +209,8 @@ def integrate_rotation(quat, omega, dt):
 @nb.njit(cache=True, error_model="numpy")
 def advance_rotation(q, w, gain, torque, held, steps, dt, rotation, turned):
     """``steps`` steps of dt [s] of every node's rotation: with ``held`` 1, under a held torque
-    [N m] (component rows, (3, >= N)), each step w <- w + gain tau (``gain`` [rad/(N m s)],
-    (N,)) then q <- exp(dt w / 2) q; taken at once, since w grows linearly: q turns by
+    [N m] (N, 3), each step w <- w + gain tau (``gain`` [rad/(N m s)], (N,)) then
+    q <- exp(dt w / 2) q; taken at once, since w grows linearly: q turns by
     steps dt w_0 + dt steps (steps + 1) / 2 gain tau (exact up to the commutator of the step
     rotations, O((dt |w|)^2 steps^2)). With ``held`` 0 the torque is ignored and q turns by
     steps dt w exactly. The orientations q [-] and angular velocities w [rad/s] as component
@@ -223,16 +223,15 @@ def advance_rotation(q, w, gain, torque, held, steps, dt, rotation, turned):
     run only if there are any); then w. Node by node the same arithmetic as one loop calling
     :func:`turn`, so the same bits; that loop stayed scalar (a call in it), 7.2 us a step for
     the capture's 470 nodes. The series' loop vectorizes only as written: reading rows (unit
-    stride), writing other arrays than it reads, choosing between values already loaded; the
-    torque is read as rows too (the grid's: 2.9 -> 2.2 us on the capture's state, where
-    (N, 3) was read across its rows)."""
+    stride: not the (N, 3) torque), writing other arrays than it reads, choosing between
+    values already loaded."""
     ramp = 0.5 * steps * (steps + 1) * dt * held
     span = steps * dt
     n = gain.shape[0]
     for a in range(3):
         for i in range(n):
             g = gain[i] * ramp
-            rotation[a, i] = span * w[a, i] + g * torque[a, i]
+            rotation[a, i] = span * w[a, i] + g * torque[i, a]
     large = 0
     for i in range(n):
         wx, wy, wz = rotation[0, i], rotation[1, i], rotation[2, i]
@@ -258,4 +257,4 @@ def advance_rotation(q, w, gain, torque, held, steps, dt, rotation, turned):
     for a in range(3):
         for i in range(n):
             g = gain[i] * steps * held
-            w[a, i] += g * torque[a, i]
+            w[a, i] += g * torque[i, a]

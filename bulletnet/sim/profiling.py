@@ -102,7 +102,7 @@ def _force_loop(steps, every, pos, vel, quat, omega, model, work, base, grid, vi
         if grid is not None:
             if quat is not None:
                 if weight > 0.0:
-                    grid_kernels.bending(grid, views)
+                    grid_kernels.bending(grid, views, work.torque)
             grid_kernels.thread_forces(grid, views, dt)
         else:
             external_forces(pos, vel, quat, omega, model, work, base, weight, False)

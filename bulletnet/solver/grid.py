@@ -165,8 +165,6 @@ class Grid(NamedTuple):
     [N m] (3), torque on node i [N m] (3), shape (9, Ns + Ns^2)."""
     bv: np.ndarray
     """The same for thread v(i), shape (9, Ns + Ns^2)."""
-    tq: np.ndarray
-    """Bending torque on each node [N m], shape (3, L) (rows, as the rotations read it)."""
     cables: CableArrays | None
     """The closing cables (pair-list kernels on the views); None without."""
     orbit: OrbitArrays | None = None
@@ -197,8 +195,6 @@ class GridViews(NamedTuple):
     """Orientations [-], shape (N, 4)."""
     omega: np.ndarray
     """Angular velocities [rad/s], shape (N, 3)."""
-    torque: np.ndarray
-    """Bending torques [N m], shape (N, 3)."""
 
 
 def applies(model: NetModel) -> bool:
@@ -248,10 +244,10 @@ def build(model: NetModel, cables: CableArrays | None = None,
     length = _rows(max(count, h_count + 1, v_count + ns))
     wide = ns + length
     (h, v, masses, x, vel, dv, base, bend, other, th, tv, eh, ev, blocks, wh, wv, cg, block_inv,
-     o_axis, bh, bv, quat, omega, tq) = _carve(
+     o_axis, bh, bv, quat, omega) = _carve(
         [(10, h_count), (10, v_count), (2, length)] + [(3, length)] * 6 + [(3, wide)] * 4
         + [(4, wide), (3, wide), (3, wide), (4, 3, length), (9, length), (q, 3), (9, wide),
-           (9, wide), (4, length), (3, length), (3, length)])
+           (9, wide), (4, length), (3, length)])
     h[0] = v[0] = np.inf
     for p, (i, j) in enumerate(pairs[:inner]):
         (h if j == i + 1 else v)[:, i] = per_thread[:, p]
@@ -264,7 +260,7 @@ def build(model: NetModel, cables: CableArrays | None = None,
         q=quat, w=omega, dv=dv, base=base, bend=bend, other=other, th=th, tv=tv, eh=eh, ev=ev,
         blocks=blocks, wh=wh, wv=wv, cg=cg, block_inv=block_inv, o_tension=np.zeros(q),
         o_along=np.zeros(q), o_across=np.zeros(q), o_axis=o_axis, o_bend=o[3:7].copy(),
-        o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q), bh=bh, bv=bv, tq=tq,
+        o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q), bh=bh, bv=bv,
         cables=cables, orbit=orbit,
         o_rest_rate=None if rest_rate is None else rest_rate[inner:].copy())
 
@@ -276,8 +272,7 @@ def views(grid: Grid) -> GridViews:
     :func:`_block_jacobi`)."""
     count = grid.count
     return GridViews(*(a[:, :count].T for a in (grid.x, grid.v, grid.dv, grid.bend,
-                                                grid.other, grid.cg[0], grid.q, grid.w,
-                                                grid.tq)))
+                                                grid.other, grid.cg[0], grid.q, grid.w)))
 
 
 def load(grid: Grid, state, base) -> None:
@@ -698,10 +693,9 @@ def _bending_stencil(x, v, q, w, off, params, out, count, ns):
 
 
 @nb.njit(cache=True, error_model="numpy", _nrt=False)
-def bending(grid, views):
+def bending(grid, views, torque):
     """The bending springs afresh (as :func:`~bulletnet.solver.integrators.evaluate_bending`, in the
-    pair-list order): forces [N] into the bend rows, torques [N m] into the tq rows (their
-    (N, 3) view ``views.torque``: the other threads add theirs through it)."""
+    pair-list order): forces [N] into the bend rows, torques [N m] into ``torque`` (N, 3)."""
     ns, n, count = U(grid.ns), U(grid.n), U(grid.count)
     x, v, q, w, bh, bv, bend = grid.x, grid.v, grid.q, grid.w, grid.bh, grid.bv, grid.bend
     _bending_stencil(x, v, q, w, ONE, grid.h_bend, bh, n - ONE, ns)
@@ -711,18 +705,16 @@ def bending(grid, views):
             bend[a, i] = _neighbours(0.0, bh, bv, a, i, ns, 1.0)
         for i in range(n, count):
             bend[a, i] = 0.0
-    tq = grid.tq
-    for a in range(U(3)):  # into rows: unit stride, vectorized (the (N, 3) view: 1.1 -> 0.5 us)
+    for a in range(U(3)):
         for i in range(n):
-            tq[a, i] = (((((0.0 - bv[a + U(6), i]) - bh[a + U(6), i + ns - ONE])
-                          + bh[a + U(3), i + ns]) + bh[a + U(6), i + ns])
-                        + bv[a + U(3), i + ns]) + bv[a + U(6), i + ns]
+            torque[i, a] = (((((0.0 - bv[a + U(6), i]) - bh[a + U(6), i + ns - ONE])
+                              + bh[a + U(3), i + ns]) + bh[a + U(6), i + ns])
+                            + bv[a + U(3), i + ns]) + bv[a + U(6), i + ns]
         for i in range(n, count):
-            tq[a, i] = 0.0
+            torque[i, a] = 0.0
     p = grid.o_bend
     bending_forces(views.position, views.velocity, views.quat, views.omega, grid.o_pairs,
-                   grid.o_rest_axis, p[0], p[1], p[2], p[3], views.bend, views.torque,
-                   grid.o_shear)
+                   grid.o_rest_axis, p[0], p[1], p[2], p[3], views.bend, torque, grid.o_shear)
 
 
 @nb.njit(cache=True, error_model="numpy")

@@ -411,16 +411,16 @@ def angular_gains(method, weight, dt, model, gain):
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def _rotate(grid, quat, omega, gain, torque, held, steps, dt, work):
-    """:func:`~bulletnet.kernels.bending.advance_rotation` of (quat, omega) (N, 4), (N, 3)
-    under the torque (N, 3) on their component rows: on the grid (``grid`` not None) its own
-    rows, C-contiguous, so that the loops vectorize (a view's strides are not known when it
-    is compiled and the series' loop then stays scalar: 8.7 against 3.6 us for 470 nodes;
-    the torque's rows, 2.9 against 2.2 us); on the pair list the arrays' transposes."""
+    """:func:`~bulletnet.kernels.bending.advance_rotation` of (quat, omega) (N, 4), (N, 3) on
+    their component rows: on the grid (``grid`` not None) its own rows, C-contiguous, so that
+    the series' loop vectorizes (a view's strides are not known when it is compiled and that
+    loop then stays scalar: 8.7 against 3.6 us for 470 nodes); on the pair list the arrays'
+    transposes."""
     if grid is None:
-        advance_rotation(quat.T, omega.T, gain, torque.T, held, steps, dt, work.rotation,
+        advance_rotation(quat.T, omega.T, gain, torque, held, steps, dt, work.rotation,
                          work.turned)
     else:
-        advance_rotation(grid.q, grid.w, gain, grid.tq, held, steps, dt, work.rotation,
+        advance_rotation(grid.q, grid.w, gain, torque, held, steps, dt, work.rotation,
                          work.turned)
 
 
@@ -531,7 +531,7 @@ def advance(on_grid: bool, implicit: bool):
             if on_grid:  # the grid's stencils (bending as in external_forces)
                 if quat is not None:
                     if weight > 0.0:
-                        grid_kernels.bending(grid, views)
+                        grid_kernels.bending(grid, views, work.torque)
                 if implicit:
                     grid_kernels.implicit_step(grid, views, dt, tol, work.cg_iterations)
                 else:
