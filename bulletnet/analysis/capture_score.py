@@ -166,10 +166,10 @@ def _share_inside(points, planes, tolerance):
 
 @nb.njit(cache=True, error_model="numpy")
 def largest_distance(positions, nodes):
-    """Largest distance between two of the nodes ``nodes`` (M,) of ``positions`` (N, 3) [m]
+    """Largest distance [m] between two of the nodes ``nodes`` (M,) of ``positions`` (N, 3)
     [m]; NaN if a position is not finite. Each distance as scipy's ``pdist`` computes it,
     sqrt(dx^2 + dy^2 + dz^2) summed in that order, and sqrt is monotonic: the same bits as
-    ``pdist(positions[nodes]).max()``, without its import (0.14 s) or its call."""
+    ``pdist(positions[nodes]).max()``, without its import (about 0.1 s) or its call."""
     largest, finite = 0.0, True
     for a in range(nodes.shape[0]):
         i = nodes[a]
