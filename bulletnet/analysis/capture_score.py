@@ -167,10 +167,11 @@ def _share_inside(points, planes, tolerance):
 @nb.njit(cache=True, error_model="numpy")
 def largest_distance(positions, nodes):
     """Largest distance [m] between two of the nodes ``nodes`` (M,) of ``positions`` (N, 3)
-    [m]; NaN if a position is not finite. Each distance as scipy's ``pdist`` computes it,
-    sqrt(dx^2 + dy^2 + dz^2) summed in that order, and sqrt is monotonic: the same bits as
-    ``pdist(positions[nodes]).max()``, without its import (about 0.1 s) or its call."""
-    largest, finite = 0.0, True
+    [m]; NaN if a distance is (a NaN position), inf if one is infinite. Each distance as
+    scipy's ``pdist`` computes it, sqrt(dx^2 + dy^2 + dz^2) summed in that order, and sqrt
+    is monotonic: the same bits as ``pdist(positions[nodes]).max()``, without its import
+    (about 0.1 s) or its call."""
+    largest, defined = 0.0, True
     for a in range(nodes.shape[0]):
         i = nodes[a]
         x, y, z = positions[i, 0], positions[i, 1], positions[i, 2]
@@ -178,9 +179,9 @@ def largest_distance(positions, nodes):
             j = nodes[b]
             dx, dy, dz = x - positions[j, 0], y - positions[j, 1], z - positions[j, 2]
             s = dx * dx + dy * dy + dz * dz
-            finite &= s == s
+            defined &= s == s  # (NaN is not equal to itself)
             largest = s if s > largest else largest
-    return math.sqrt(largest) if finite else math.nan
+    return math.sqrt(largest) if defined else math.nan
 
 
 def mouth_opening(positions: np.ndarray, nodes_per_side: int, side: float) -> float:
