@@ -6,9 +6,9 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
 
 1. the CG iterations a step of the run so far, and each part of a CG iteration, called
    5000 times on the snapshot's vectors: the product A d, the preconditioner's factor
-   (once a step), the preconditioning with the sums r . z and r . r taken in its pass, the
-   dot product d . A d (node by node, in node order: one sequential chain of additions
-   each sum), the vector updates (best of 5 loops);
+   (once a step), the preconditioning with the residual's update and the sums r . z and
+   r . r taken in its pass, the dot product d . A d (node by node, in node order: one
+   sequential chain of additions each sum), the updates of dv and d (best of 5 loops);
 2. two bounds measured beside them: the memory bandwidth of a triad over arrays as large as
    the iteration's working set (so from the same cache level: above L1, inside L2), which
    with the bytes an iteration's passes read and write (counted below, :data:`PASS_ROWS`)
@@ -51,12 +51,12 @@ from bulletnet.solver import grid as G
 from bulletnet.solver import integrators, pcg
 from bulletnet.solver.contact_stage import self_stage
 
-PASS_ROWS = {"product": 35, "preconditioning_and_sums": 15, "dot_d_ad": 6, "updates": 27}
+PASS_ROWS = {"product": 35, "preconditioning_and_sums": 21, "dot_d_ad": 6, "updates": 15}
 """Rows of L doubles each pass of a CG iteration reads plus writes (grid layout): the product
 (two thread stencils: d 3, the blocks' along and across 2, axes 3, products written 3, each
 x2; the node pass: mass 1, d 3, both products 6, A d written 3), the preconditioning with
-r . z and r . r (inverse blocks 9, r 3, z written 3), d . A d (6), the updates (dv, d, r, A d
-read, dv and r written; then z, d read and d written)."""
+the residual's update, r . z and r . r (inverse blocks 9, r and A d 6, r and z written 6),
+d . A d (6), the updates of dv and d (dv, d, z read, dv and d written)."""
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -72,10 +72,12 @@ def _time_factor(grid, calls):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _time_preconditioning(grid, r, z, calls):
+def _time_preconditioning(grid, r, z, ad, calls):
+    """The preconditioning as :func:`bulletnet.solver.pcg.solve` calls it (alpha tiny: r
+    stays as it is)."""
     s = 0.0
     for _ in range(calls):
-        rz, rr = G._precondition(grid, r, z)
+        rz, rr = G._precondition(grid, r, z, ad, 1e-300)
         s += rz + rr
     return s
 
@@ -89,17 +91,15 @@ def _time_dot(d, ad, count, calls):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _time_updates(dv, r, z, d, ad, calls):
-    """The iteration's element-by-element updates as :func:`bulletnet.solver.pcg.solve`
-    writes them (alpha, beta tiny: the vectors stay as they are)."""
-    dv_e, r_e, z_e, d_e, ad_e = (dv.reshape(-1), r.reshape(-1), z.reshape(-1),
-                                 d.reshape(-1), ad.reshape(-1))
-    size = nb.uint64(r_e.shape[0])
+def _time_updates(dv, z, d, calls):
+    """The iteration's element-by-element updates of dv and d as
+    :func:`bulletnet.solver.pcg.solve` writes them (alpha, beta tiny: the vectors stay as they
+    are)."""
+    dv_e, z_e, d_e = dv.reshape(-1), z.reshape(-1), d.reshape(-1)
+    size = nb.uint64(d_e.shape[0])
     for _ in range(calls):
         for k in range(size):
             dv_e[k] += 1e-300 * d_e[k]
-            r_e[k] -= 1e-300 * ad_e[k]
-        for k in range(size):
             d_e[k] = z_e[k] + 1e-300 * d_e[k]
 
 
@@ -211,9 +211,10 @@ class GridParts(At):
         r, z, d, ad = g.cg[0], g.cg[1], g.cg[2], g.cg[3]
         parts = {
             "product": best_us(lambda k: _time_product(g, d, ad, k)),
-            "preconditioning_and_sums": best_us(lambda k: _time_preconditioning(g, r, z, k)),
+            "preconditioning_and_sums": best_us(
+                lambda k: _time_preconditioning(g, r, z, ad, k)),
             "dot_d_ad": best_us(lambda k: _time_dot(d, ad, count, k)),
-            "updates": best_us(lambda k: _time_updates(g.dv, r, z, d, ad, k)),
+            "updates": best_us(lambda k: _time_updates(g.dv, z, d, k)),
         }
         iteration = sum(parts.values())
         traffic = 8 * length * sum(PASS_ROWS.values())

@@ -579,14 +579,17 @@ def _block_jacobi(grid):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _precondition(grid, r, z):
-    """z [m/s] = the inverse diagonal blocks times r [kg m/s] ((3, L) rows), node by node;
-    returns r . z [kg m^2/s^2] and r . r [kg^2 m^2/s^2] summed in node order
+def _precondition(grid, r, z, ad, alpha):
+    """r [kg m/s] <- r - ``alpha`` [-] ad [kg m/s], then z [m/s] = the inverse diagonal blocks
+    times r, node by node ((3, L) rows; the padding columns, zeros, untouched); returns r . z
+    [kg m^2/s^2] and r . r [kg^2 m^2/s^2] summed in node order
     (:func:`bulletnet.solver.pcg.dot_terms`)."""
     count, inv = U(grid.count), grid.block_inv
     rz = rr = 0.0
     for i in range(count):
-        r0, r1, r2 = r[0, i], r[1, i], r[2, i]
+        r0, r1, r2 = r[0, i] - alpha * ad[0, i], r[1, i] - alpha * ad[1, i], \
+            r[2, i] - alpha * ad[2, i]
+        r[0, i], r[1, i], r[2, i] = r0, r1, r2
         z0 = inv[0, i] * r0 + inv[1, i] * r1 + inv[2, i] * r2
         z1 = inv[3, i] * r0 + inv[4, i] * r1 + inv[5, i] * r2
         z2 = inv[6, i] * r0 + inv[7, i] * r1 + inv[8, i] * r2

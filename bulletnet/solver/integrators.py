@@ -312,14 +312,17 @@ def _block_jacobi(system):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _precondition(system, r, z):
-    """z [m/s] = the inverse diagonal blocks of :class:`PairSystem` times r [kg m/s], node by
-    node, zero on clamped nodes; r and z (N, 3). Returns r . z [kg m^2/s^2] and r . r
-    [kg^2 m^2/s^2] summed in node order (:func:`bulletnet.solver.pcg.dot_terms`)."""
+def _precondition(system, r, z, ad, alpha):
+    """r [kg m/s] <- r - ``alpha`` [-] ad [kg m/s], then z [m/s] = the inverse diagonal blocks
+    of :class:`PairSystem` times r, node by node, zero on clamped nodes; r, z and ad (N, 3).
+    Returns r . z [kg m^2/s^2] and r . r [kg^2 m^2/s^2] summed in node order
+    (:func:`bulletnet.solver.pcg.dot_terms`)."""
     inv, fixed = system.block_inv, system.fixed
     rz = rr = 0.0
     for i in range(r.shape[0]):
-        r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
+        r0, r1, r2 = r[i, 0] - alpha * ad[i, 0], r[i, 1] - alpha * ad[i, 1], \
+            r[i, 2] - alpha * ad[i, 2]
+        r[i, 0], r[i, 1], r[i, 2] = r0, r1, r2
         z0 = z1 = z2 = 0.0
         if not fixed[i]:
             z0 = inv[i, 0, 0] * r0 + inv[i, 0, 1] * r1 + inv[i, 0, 2] * r2

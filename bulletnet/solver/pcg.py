@@ -10,18 +10,21 @@ layout, and hand :func:`solve` the operations that depend on it, as compiled fun
 - ``apply(system, x, out)``: out = A x, the system's matrix times x;
 - ``factor(system)``: the block-Jacobi preconditioner, each node's 3 x 3 diagonal block of A
   inverted, kept in the system;
-- ``precondition(system, r, z)``: z = those inverse blocks times r, node by node (zero on a
-  clamped node's rows), returning the sums r . z and r . r of :func:`dot_terms` over the
-  nodes in node order, taken in the same pass (a sum in order is a chain of additions; the
-  pass's other work runs beside it: :mod:`bulletnet.common.ordered_sums`);
+- ``precondition(system, r, z, ad, alpha)``: first r <- r - alpha ad (the residual's update,
+  element by element), then z = those inverse blocks times r, node by node (zero on a clamped
+  node's rows), returning the sums r . z and r . r of :func:`dot_terms` over the nodes in node
+  order, all in one pass (a sum in order is a chain of additions; the pass's other work runs
+  beside it: :mod:`bulletnet.common.ordered_sums`);
 - ``components(x)``: x as component rows, x[a, i] component a of node i, shape (3, >= N):
   the grid's rows themselves, the transpose of a pair-list array.
 
 The dot products and the momentum sums run node by node in node order over the component
-rows; the updates run element by element over each vector's memory as one flat array (the
-grid's padding columns included: zeros that stay zero and that nothing reads), so that they
-vectorize in both layouts. Both paths then do the same arithmetic in the same order and give
-the same floating-point results, bit for bit.
+rows; the updates of dv and d run element by element over each vector's memory as one flat
+array (the grid's padding columns included: zeros that stay zero and that nothing reads), so
+that they vectorize in both layouts. Each update is fused into a pass that reads its vectors
+anyway: the residual's into ``precondition``, dv's (dv + alpha d, with the d of the product)
+into d's (z + beta d). Both paths then do the same arithmetic in the same order and give the
+same floating-point results, bit for bit.
 
 :func:`solve` is inlined into each caller (``inline="always"``) and the operations are its
 arguments, not closure variables of a factory: numba keys a cached closure on its pickled
@@ -70,9 +73,8 @@ def solve(apply, factor, precondition, components, system, dv, r, z, d, ad, mass
     n = nb.uint64(count)  # unsigned node indices: no negative-index wraparound in the loops
     # node by node (dot products, momentum): component rows; element by element: flat
     dv_n, r_n, d_n, ad_n = components(dv), components(r), components(d), components(ad)
-    dv_e, r_e, z_e, d_e, ad_e = (dv.reshape(-1), r.reshape(-1), z.reshape(-1), d.reshape(-1),
-                                 ad.reshape(-1))
-    size = nb.uint64(r_e.shape[0])
+    dv_e, z_e, d_e = dv.reshape(-1), z.reshape(-1), d.reshape(-1)
+    size = nb.uint64(d_e.shape[0])
     m0 = m1 = m2 = 0.0  # the step's exact momentum change: sum of dt F (internal forces cancel)
     for i in range(n):  # three sums in node order, their dependency chains interleaved
         m0 += r_n[0, i]
@@ -83,10 +85,8 @@ def solve(apply, factor, precondition, components, system, dv, r, z, d, ad, mass
         dv[:] = 0.0
         return
     factor(system)
-    apply(system, dv, ad)  # r <- rhs - A dv (warm start)
-    for k in range(size):
-        r_e[k] -= ad_e[k]
-    rz, rr = precondition(system, r, z)
+    apply(system, dv, ad)
+    rz, rr = precondition(system, r, z, ad, 1.0)  # r <- rhs - A dv (warm start; 1.0 x is x)
     for k in range(size):
         d_e[k] = z_e[k]
     for _ in range(4 * count):
@@ -94,13 +94,11 @@ def solve(apply, factor, precondition, components, system, dv, r, z, d, ad, mass
             break
         apply(system, d, ad)
         alpha = rz / _dot(d_n, ad_n, n)
-        for k in range(size):
-            dv_e[k] += alpha * d_e[k]
-            r_e[k] -= alpha * ad_e[k]
-        rz_new, rr = precondition(system, r, z)
+        rz_new, rr = precondition(system, r, z, ad, alpha)  # r <- r - alpha A d, z
         beta = rz_new / rz
         rz = rz_new
         for k in range(size):
+            dv_e[k] += alpha * d_e[k]
             d_e[k] = z_e[k] + beta * d_e[k]
         iterations[0] += 1
     if not conserve:
