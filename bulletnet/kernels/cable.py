@@ -38,8 +38,13 @@ from typing import NamedTuple
 
 import numba as nb
 import numpy as np
+from numba.core import types
+from numba.extending import overload
 
 from .axial import add_block, add_pair, block_product, kelvin_voigt
+
+_U = nb.uint64
+"""Unsigned indices: numba skips the negative-index wraparound on them."""
 
 
 class CableArrays(NamedTuple):
@@ -191,18 +196,21 @@ def _rank_one(x, cables, c):
     """g . x over cable c's vertices (x (N, 3) by node)."""
     nodes, grad = cables.nodes, cables.grad
     s = 0.0
-    for v in range(cables.start[c], cables.start[c + 1]):
-        i = nodes[v]
+    for v in range(_U(cables.start[c]), _U(cables.start[c + 1])):
+        i = _U(nodes[v])
         s += grad[v, 0] * x[i, 0] + grad[v, 1] * x[i, 1] + grad[v, 2] * x[i, 2]
     return s
 
 
-@nb.njit(cache=True, error_model="numpy")
 def add_cable_product(x, cables, out, along_scale, sign):
     """out += sign (the cables' implicit blocks applied to x) (N, 3): the rank-one part with
     coefficient ``along`` (or, with ``along_scale`` > 0, along_scale k: the right-hand side's
-    stiffness part) and the spans' geometric part."""
-    if cables is None:  # no cables: this specialization compiles to nothing
+    stiffness part) and the spans' geometric part.
+
+    In compiled code it is inlined into its callers once typed (:func:`_inline_cable_product`),
+    its indices unsigned (no negative-index wraparound): the closing capture's product at
+    30 s, 2.68 -> 2.02 us, its four cables' share (92 vertices) 1.07 -> 0.55 us."""
+    if cables is None:
         return
     nodes, grad, axis, across = cables.nodes, cables.grad, cables.axis, cables.across
     for c in range(cables.start.shape[0] - 1):
@@ -212,17 +220,27 @@ def add_cable_product(x, cables, out, along_scale, sign):
         if along_scale > 0.0:
             along = along_scale * cables.rigidity[c] / cables.rest[c]
         s = sign * along * _rank_one(x, cables, c)
-        first, last = cables.start[c], cables.start[c + 1] - 1
-        for v in range(first, last + 1):
-            i = nodes[v]
-            for a in range(3):
+        first, last = _U(cables.start[c]), _U(cables.start[c + 1] - 1)
+        for v in range(first, last + _U(1)):
+            i = _U(nodes[v])
+            for a in range(_U(3)):
                 out[i, a] += s * grad[v, a]
         for v in range(first, last):
-            i, j = nodes[v], nodes[v + 1]
+            i, j = _U(nodes[v]), _U(nodes[v + _U(1)])
             w0, w1, w2 = block_product(x[i, 0] - x[j, 0], x[i, 1] - x[j, 1],
                                        x[i, 2] - x[j, 2], 0.0, across[v], axis[v, 0],
                                        axis[v, 1], axis[v, 2])
             add_pair(out, i, j, sign * w0, sign * w1, sign * w2)
+
+
+@overload(add_cable_product, inline="always")
+def _inline_cable_product(x, cables, out, along_scale, sign):
+    """:func:`add_cable_product` in compiled code, inlined after typing (numba's
+    ``inline="always"`` on a jitted function inlines before typing, where the ``cables is
+    None`` branch is not yet pruned, and a scene without cables would not compile)."""
+    if isinstance(cables, types.NoneType):  # no cables: nothing to add
+        return lambda x, cables, out, along_scale, sign: None
+    return add_cable_product
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
