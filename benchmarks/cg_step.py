@@ -28,7 +28,10 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    loop advanced over :data:`STEP_SPAN` (its CG iterations counted), so that the step's
    time splits into the CG (iterations x the iteration, plus the factor), the two contact
    stages and what is left (forces, the system's assembly, cables, winches, peaks, the
-   returns to Python for the debris' dynamics).
+   returns to Python for the debris' dynamics); then, over four more spans, the scene's
+   tolerance and one a hundred times tighter in turn: the step's time against its CG
+   iterations, whose slope is what one iteration costs inside the run's loop (the marginal
+   iterations, nothing else changed), against the passes' time alone above.
 
 Also the frozen yardstick, timed at the start and the end. Writes ``OUT/cg_step.json``:
 
@@ -183,6 +186,28 @@ def step_parts(e, state) -> dict:
             "step_us": 1e6 * wall / steps}
 
 
+def in_loop_iteration(e, state) -> dict:
+    """What one CG iteration costs inside the run's loop [us]: the engine advanced over four
+    spans of :data:`STEP_SPAN`, at the scene's tolerance and at one a hundred times tighter in
+    turn; each pair of neighbouring spans gives (difference of their steps' times) /
+    (difference of their iterations a step). Restores the tolerance."""
+    tol, spans = e.cg_tolerance, []
+    for tight in (False, True, False, True):
+        e.cg_tolerance = tol / 100.0 if tight else tol
+        steps, iterations, start = e.steps, int(e.work.cg_iterations[0]), time.perf_counter()
+        e.advance(state, state.time + STEP_SPAN)
+        wall, steps = time.perf_counter() - start, e.steps - steps
+        spans.append({"tolerance": e.cg_tolerance, "step_us": 1e6 * wall / steps,
+                      "cg_iterations_per_step":
+                          (int(e.work.cg_iterations[0]) - iterations) / steps})
+    e.cg_tolerance = tol
+    slopes = [(b["step_us"] - a["step_us"])
+              / (b["cg_iterations_per_step"] - a["cg_iterations_per_step"])
+              for a, b in zip(spans, spans[1:], strict=False)]
+    return {"spans": spans, "iteration_us": slopes,
+            "iteration_us_median": float(np.median(slopes))}
+
+
 def _sums(a, count, calls):
     """``calls`` sums of a[:count], in order (compiled as :data:`_chain`) or with the
     additions free to be reordered, vectorized (:data:`_reordered`)."""
@@ -243,7 +268,7 @@ class GridParts(At):
         step["cg_us"] = iteration * step["cg_iterations_per_step"] + factor
         step["rest_us"] = (step["step_us"] - step["cg_us"] - step["debris_stage_us"]
                            - step["self_stage_us"])
-        return {**taken, "step": step}
+        return {**taken, "step": step, "in_loop": in_loop_iteration(e, state)}
 
 
 class PairSystemAt(At):
@@ -340,7 +365,7 @@ def main() -> int:
              "capture_closing": ("capture_closing", {}, args.closing_at)}
     doc = {"machine": machine(), "cases": {}}
     for name, (scene_name, overrides, at) in cases.items():
-        scene = bn.load_scenario(scene_name, {**overrides, "scene.duration": at + 1.0})
+        scene = bn.load_scenario(scene_name, {**overrides, "scene.duration": at + 3.0})
         parts = GridParts(at)
         bn.run(scene, None, observers=[parts])
         system = PairSystemAt(at)
