@@ -41,10 +41,8 @@ import numpy as np
 from numba.core import types
 from numba.extending import overload
 
+from . import U
 from .axial import add_block, add_pair, block_product, kelvin_voigt
-
-_U = nb.uint64
-"""Unsigned indices: numba skips the negative-index wraparound on them."""
 
 
 class CableArrays(NamedTuple):
@@ -196,8 +194,8 @@ def _rank_one(x, cables, c):
     """g . x over cable c's vertices (x (N, 3) by node)."""
     nodes, grad = cables.nodes, cables.grad
     s = 0.0
-    for v in range(_U(cables.start[c]), _U(cables.start[c + 1])):
-        i = _U(nodes[v])
+    for v in range(U(cables.start[c]), U(cables.start[c + 1])):
+        i = U(nodes[v])
         s += grad[v, 0] * x[i, 0] + grad[v, 1] * x[i, 1] + grad[v, 2] * x[i, 2]
     return s
 
@@ -220,13 +218,13 @@ def add_cable_product(x, cables, out, along_scale, sign):
         if along_scale > 0.0:
             along = along_scale * cables.rigidity[c] / cables.rest[c]
         s = sign * along * _rank_one(x, cables, c)
-        first, last = _U(cables.start[c]), _U(cables.start[c + 1] - 1)
-        for v in range(first, last + _U(1)):
-            i = _U(nodes[v])
-            for a in range(_U(3)):
+        first, last = U(cables.start[c]), U(cables.start[c + 1] - 1)
+        for v in range(first, last + U(1)):
+            i = U(nodes[v])
+            for a in range(U(3)):
                 out[i, a] += s * grad[v, a]
         for v in range(first, last):
-            i, j = _U(nodes[v]), _U(nodes[v + _U(1)])
+            i, j = U(nodes[v]), U(nodes[v + U(1)])
             w0, w1, w2 = block_product(x[i, 0] - x[j, 0], x[i, 1] - x[j, 1],
                                        x[i, 2] - x[j, 2], 0.0, across[v], axis[v, 0],
                                        axis[v, 1], axis[v, 2])

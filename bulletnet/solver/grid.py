@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from ..kernels import U
 from ..kernels.axial import (
     add_block,
     add_thread_blocks,
@@ -303,10 +304,6 @@ def store(grid: Grid, state) -> None:
         state.angular_velocity[:] = grid.w[:, :count].T
 
 
-U = nb.uint64
-"""Indices are unsigned in the kernels: numba then skips the negative-index wraparound, which
-would turn every shifted load into a gather, and creates no array views (each view costs an
-atomic reference count increment and decrement)."""
 ONE = U(1)
 
 
