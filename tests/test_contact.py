@@ -6,13 +6,14 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
 import bulletnet as bn
 from bulletnet.kernels.contact import normal_step
-from bulletnet.kernels.geometry import debris_distance
+from bulletnet.kernels.geometry import debris_distance, frustum_distance
 from bulletnet.model.debris import Debris, Part, load_debris
 from bulletnet.solver import contact_stage as contact
 
@@ -228,6 +229,56 @@ def test_debris_distance_of_a_frustum():
     assert distance(on_side + 0.1 * normal) == pytest.approx(0.1)
     np.testing.assert_allclose(n, normal, atol=1e-12)
     assert distance(on_side - 0.1 * normal) == pytest.approx(-0.1)
+
+
+@nb.njit(error_model="numpy")
+def _every_segment(rho, y, y0, y1, r0, r1):
+    """Reference for frustum_distance: every segment's exact distance (math.hypot, compiled
+    as the kernel's) and normal, the nearest kept, the first of equals."""
+    best, n_rho, n_y, q_rho, q_y = np.inf, 0.0, 0.0, 0.0, 0.0
+    side = math.hypot(r1 - r0, y1 - y0)
+    segments = ((0.0, y0, r0, y0, 0.0, -1.0),
+                (r0, y0, r1, y1, (y1 - y0) / side, -(r1 - r0) / side),
+                (r1, y1, 0.0, y1, 0.0, 1.0))
+    for ax, ay, bx, by, nx, ny in segments:
+        ex, ey = bx - ax, by - ay
+        length2 = ex * ex + ey * ey
+        t = 0.0 if length2 == 0.0 else ((rho - ax) * ex + (y - ay) * ey) / length2
+        t = min(1.0, max(0.0, t))
+        cx, cy = ax + t * ex, ay + t * ey
+        d = math.hypot(rho - cx, y - cy)
+        if d < best:
+            best, n_rho, n_y, q_rho, q_y = d, nx, ny, cx, cy
+    inside = y0 <= y <= y1 and rho <= r0 + (r1 - r0) * (y - y0) / (y1 - y0)
+    if inside:
+        return -best, n_rho, n_y
+    if best > 1e-12:
+        n_rho, n_y = (rho - q_rho) / best, (y - q_y) / best
+    return best, n_rho, n_y
+
+
+@pytest.mark.parametrize("shape", [(2.3, 5.5, 1.95, 0.42), (-3.8, 2.3, 1.95, 1.95),
+                                   (0.0, 2.0, 1.0, 0.0), (-1e-3, 1e-3, 2e-3, 5e-4)])
+def test_frustum_distance_is_every_segments_bit_for_bit(shape):
+    # Reference: the distance as every segment's math.hypot gives it (_every_segment); the
+    # kernel takes the hypot of the near-least segments only, and must give the same bits,
+    # also where segments tie (the meridian's corners, its bisectors, the axis, the surface).
+    y0, y1, r0, r1 = shape
+    rng = np.random.default_rng(7)
+    size = max(y1 - y0, r0, r1)
+    rho = np.abs(rng.normal(0.5 * max(r0, r1), size, 20000))
+    y = rng.uniform(y0 - size, y1 + size, 20000)
+    corners = [(0.0, y0), (r0, y0), (r1, y1), (0.0, y1)]
+    ties = [(r + e, h + f) for r, h in corners for e in (-1e-17, 0.0, 1e-9, 0.3)
+            for f in (-0.3, -1e-9, 0.0, 1e-17, 0.3)]
+    ties += [(t * r0 + (1 - t) * r1, t * y0 + (1 - t) * y1) for t in np.linspace(0, 1, 41)]
+    ties += [(r0 + d, y0 - d) for d in (1e-12, 1e-3, 0.5)]  # equidistant from base and side
+    ties += [(0.0, 0.5 * (y0 + y1)), (1e-300, y0), (np.nan, y0), (np.inf, y1)]
+    points = list(zip(rho, y, strict=True)) + ties
+    for p in points:
+        got, want = frustum_distance(*p, *shape), _every_segment(*p, *shape)
+        np.testing.assert_array_equal(np.array(got), np.array(want), err_msg=str(p))
+        assert [math.copysign(1.0, v) for v in got] == [math.copysign(1.0, v) for v in want]
 
 
 def test_debris_alone_keeps_its_spin_and_mass_properties(tmp_path):
