@@ -117,6 +117,40 @@ def test_profile_accounts_for_the_run_loop(tmp_path):
                for line in report(profile, result.wall_time_s, False))
 
 
+def test_profile_leaves_the_run_as_it_was(tmp_path):
+    # Reference: the same run without the profile, bit for bit. The profile's calibration
+    # steps the engine on past the run's end (here across the net's first touch of the
+    # debris, 0.05 s after it), so it must come after everything the run records; its
+    # contact share is the contact stage's own time, a part of the step.
+    import h5py
+    import numpy as np
+
+    def scene(duration):
+        return bn.load_scenario("capture", {
+            "net.nodes_per_side": 6, "debris.position": [0.0, 0.0, 3.0],
+            "debris.velocity": [0.0, 0.0, -2.0], "scene.duration": duration,
+            "simulation.record_rate": 20.0})
+
+    touch = bn.run(scene(0.8), tmp_path / "touch.h5").path
+    with h5py.File(touch) as f:
+        first = float(f.attrs["first_contact_s"])
+    assert 0.1 < first < 0.8
+    profile = Profile()
+    paths = [bn.run(scene(round(first - 0.05, 2)), tmp_path / f"{name}.h5", profile=p).path
+             for name, p in (("plain", None), ("profiled", profile))]
+    with h5py.File(paths[0]) as plain, h5py.File(paths[1]) as profiled:
+        assert plain.attrs["first_contact_s"] == profiled.attrs["first_contact_s"] == -1.0
+        names = []
+        plain.visit(lambda n: names.append(n) if isinstance(plain[n], h5py.Dataset) else None)
+        for name in names:
+            np.testing.assert_array_equal(plain[name][()], profiled[name][()], err_msg=name)
+        for key, value in plain.attrs.items():
+            if "wall" not in key:
+                np.testing.assert_array_equal(value, profiled.attrs[key], err_msg=key)
+    split = profile.split
+    assert 0 <= split["contact_s_per_step"] < split["step_s_per_step"]
+
+
 def test_profile_sections_are_exclusive(monkeypatch):
     # Reference: a clock that moves only when the work says (no racing the real clock). A
     # section that calls another is charged only its own time; the two add up to the call;

@@ -25,7 +25,7 @@ from ..model.scenario import Scenario, to_toml
 from ..model.state import NetState
 from ..recording.writer import Recorder
 from .compile_ahead import compile_ahead, stop_helper
-from .observers import Breakage, Observer, Outcome, Profiling, Recording, Run
+from .observers import Breakage, Observer, Outcome, Profiling, Recording, Run, StepSplit
 from .profiling import Profile
 from .tow import ReelControl, ThrustControl, TowOutcome
 from .winch import WinchControl
@@ -295,7 +295,7 @@ def _observers(scenario: Scenario, model, engine, state: NetState,
     if engine.breakage is not None:
         observers.append(Breakage())
     if profile is not None:
-        observers.append(Profiling(profile, list(observers)))
+        observers += [Profiling(profile, list(observers)), StepSplit(profile)]
     return observers
 
 

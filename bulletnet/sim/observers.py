@@ -50,8 +50,8 @@ class Observer:
     (:func:`bulletnet.sim.profiling.instrument`)."""
     finish_order = 0
     """Observers finish in this order (then in list order): the profiler first (-1: it
-    stops timing before the others finish), the recorder last (1: it writes what the others
-    add)."""
+    stops timing before the others finish), the recorder after the others (1: it writes what
+    they add), the profile's calibration of the step last (2: it steps the engine on)."""
 
     def frame(self, run: Run) -> bool:
         """See the frame just reached; True: the run stops here (completed)."""
@@ -125,8 +125,7 @@ class Outcome(Observer):
 
 class Profiling(Observer):
     """Times the run's sections from the first step on (:mod:`bulletnet.sim.profiling`): the
-    engine's and those the other ``observers`` name; at a completed run's end, the split of
-    the engine step."""
+    engine's and those the other ``observers`` name; stops timing before the others finish."""
 
     finish_order = -1
 
@@ -139,6 +138,21 @@ class Profiling(Observer):
 
     def finish(self, run: Run, status: str, attrs: dict) -> None:
         self.profile.stop()
+
+
+class StepSplit(Observer):
+    """At a completed run's end, the profile's split of the engine step
+    (:func:`~bulletnet.sim.profiling.step_split`), measured after every other observer has
+    finished (2): its calibration steps the engine on, from a copy of the last state, and
+    what that changes in the engine (a first contact, a broken thread, the winches) must not
+    reach the run's result or recording."""
+
+    finish_order = 2
+
+    def __init__(self, profile: Profile):
+        self.profile = profile
+
+    def finish(self, run: Run, status: str, attrs: dict) -> None:
         if status == "completed":
             self.profile.split = step_split(run.engine, run.state)
 
