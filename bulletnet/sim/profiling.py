@@ -140,6 +140,18 @@ def _contact_loop(steps, stage, pos, vel, dv, mass, radius, fixed, contact, dt, 
             contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t)
 
 
+def _writable(arrays) -> list[np.ndarray]:
+    """The writable arrays of a named tuple of arrays and of the named tuples in it."""
+    out = []
+    for x in arrays:
+        if isinstance(x, np.ndarray):
+            if x.flags.writeable:
+                out.append(x)
+        elif isinstance(x, tuple):
+            out += _writable(x)
+    return out
+
+
 def _seconds(run: Callable[[], None]) -> float:
     start = time.perf_counter()
     run()
@@ -162,9 +174,28 @@ def step_split(engine, state: NetState) -> dict | None:
     work = workspace(engine.model.node_count, engine.model.thread_count)
     quat, omega = engine.rotations(state)
 
+    c = getattr(engine, "contact_arrays", None)  # (the fast engine's, if it has contact)
+    saved = [(x, x.copy()) for x in _writable(c)] if c is not None else []
+    if hasattr(engine, "step_work"):
+        saved.append((engine.step_work.dv, engine.step_work.dv.copy()))  # the CG's warm start
+
+    def rewind():
+        """The engine's own state back at the run's end: the contact stage's caches and
+        Verlet list, the last velocity increment, the debris' PyBullet body (made again at
+        the state's pose: a timing starting from where the last one left the debris would
+        see it jump)."""
+        for array, copy in saved:
+            array[...] = copy
+        rigid = getattr(engine, "rigid", None)
+        if rigid is not None:
+            rigid.close()
+            engine.rigid = type(rigid)(engine.debris, state.debris)
+
     def advance(steps):
+        """Seconds of ``steps`` engine steps from (a copy of) the run's last state."""
+        rewind()
         copy = state.copy()
-        engine.advance(copy, copy.time + steps * engine.dt)
+        return _seconds(lambda: engine.advance(copy, copy.time + steps * engine.dt))
 
     grid = getattr(engine, "grid", None)
     if grid is not None:  # the grid's force kernels, on its rows (they hold the last state)
@@ -180,7 +211,6 @@ def step_split(engine, state: NetState) -> dict | None:
         _force_loop(steps, engine.bending_every, pos, vel, quat, omega, engine.arrays, work,
                     engine.base_forces(), grid, views, engine.dt)
 
-    c = getattr(engine, "contact_arrays", None)  # (the fast engine's, if it has contact)
     if c is not None:
         a, dv = engine.arrays, engine.step_work.dv
         start = tuple(x.copy() for x in (pos, vel, dv, c.com, c.quat, c.debris_gap, c.clear,
@@ -192,15 +222,16 @@ def step_split(engine, state: NetState) -> dict | None:
                                                a.fixed, c, engine.dt, state.time, start)
 
     def contact_s(steps):
+        rewind()
         return _seconds(lambda: touch(True)(steps)) - _seconds(lambda: touch(False)(steps))
 
     forces(1)  # warm
     advance(1)
     if c is not None:
         contact_s(1)
-    per_step = _seconds(lambda: advance(100)) / 100
+    per_step = advance(100) / 100
     steps = max(100, int(CALIBRATION_S / PAIRS / max(per_step, 1e-9)))
-    timings = sorted(((_seconds(lambda: forces(steps)), _seconds(lambda: advance(steps)),
+    timings = sorted(((_seconds(lambda: forces(steps)), advance(steps),
                        contact_s(steps) if c is not None else 0.0)
                       for _ in range(PAIRS)), key=lambda t: t[0] / t[1])
     force_s, step_s, touch_s = timings[PAIRS // 2]
