@@ -13,10 +13,10 @@ Two honest measurements, both off unless asked for:
    loads, axial threads, bending on its multirate schedule) and as full engine steps, three
    times interleaved; the engine time is shared out between forces and integration in the
    median ratio. With contact, the contact stage is timed alone too (interleaved the same
-   way), each call from the same state (:func:`_contact_loop`). Steps without it would not
-   do: the contact changes the conjugate gradients' work (a wrapped net's 18 iterations a
-   step against 26 without its contacts), and that is the solver's time, not the contact's.
-   The calibration steps the engine on from a copy of the last state, so it comes after
+   way), each call from the same state (:func:`_contact_loop`): steps without it would not
+   do, a net without its contacts moves otherwise and its solver's work changes with it.
+   Every timing starts from the run's end, the engine's own state included (its contact
+   caches, its debris' PyBullet body); it steps the engine on from there, so it comes after
    every other observer has finished (:class:`~bulletnet.sim.observers.StepSplit`).
 """
 
