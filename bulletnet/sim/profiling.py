@@ -273,9 +273,11 @@ def report(profile: Profile, total_s: float, contact: bool) -> list[str]:
         where = f"the run's last state, t = {split['time_s']:.4g} s"
         if "near_debris" in split:  # contact costs what the state has: say what it had
             where += f", {split['near_debris']} nodes within a step's reach of the debris"
+        touch = split.get("contact_s_per_step")
+        parts = f"forces {split['force_s_per_step'] * 1e6:.3g} us" + (
+            "" if touch is None else f", contact {touch * 1e6:.3g} us")
         lines.append(f"  (split of the engine step from {split['steps']} calibration steps at "
-                     f"{where}: forces {split['force_s_per_step'] * 1e6:.3g} us of "
-                     f"{split['step_s_per_step'] * 1e6:.3g} us a step)")
+                     f"{where}: {parts} of {split['step_s_per_step'] * 1e6:.3g} us a step)")
     if not contact:
         lines.append("  contact: none, the scene has no contact")
     return lines
