@@ -141,7 +141,8 @@ def _contact_loop(steps, stage, pos, vel, dv, mass, radius, fixed, contact, dt, 
 
 
 def _writable(arrays) -> list[np.ndarray]:
-    """The writable arrays of a named tuple of arrays and of the named tuples in it."""
+    """The writable arrays of a tuple of arrays, named tuples and None, and of the tuples in
+    it."""
     out = []
     for x in arrays:
         if isinstance(x, np.ndarray):
@@ -175,15 +176,16 @@ def step_split(engine, state: NetState) -> dict | None:
     quat, omega = engine.rotations(state)
 
     c = getattr(engine, "contact_arrays", None)  # (the fast engine's, if it has contact)
-    saved = [(x, x.copy()) for x in _writable(c)] if c is not None else []
-    if hasattr(engine, "step_work"):
-        saved.append((engine.step_work.dv, engine.step_work.dv.copy()))  # the CG's warm start
+    held = tuple(getattr(engine, name, None) for name in (
+        "arrays", "grid", "contact_arrays", "work", "step_work", "breakage", "peaks"))
+    saved = [(x, x.copy()) for x in _writable(held)]
 
     def rewind():
-        """The engine's own state back at the run's end: the contact stage's caches and
-        Verlet list, the last velocity increment, the debris' PyBullet body (made again at
-        the state's pose: a timing starting from where the last one left the debris would
-        see it jump)."""
+        """The engine's own state back at the run's end: every array its kernels write (the
+        contact stage's caches and Verlet list, the winches' and the reel's rest lengths, a
+        thread broken since, the last velocity increment, ...), and the debris' PyBullet body
+        made again at the state's pose (a timing starting from where the last one left the
+        debris would see it jump)."""
         for array, copy in saved:
             array[...] = copy
         rigid = getattr(engine, "rigid", None)
