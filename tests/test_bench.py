@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from conftest import small_scene
+from conftest import small_capture, small_scene
 from test_recording_cli import cli
 
 import bulletnet as bn
@@ -125,18 +125,13 @@ def test_profile_leaves_the_run_as_it_was(tmp_path):
     import h5py
     import numpy as np
 
-    def scene(duration):
-        return bn.load_scenario("capture", {
-            "net.nodes_per_side": 6, "debris.position": [0.0, 0.0, 3.0],
-            "debris.velocity": [0.0, 0.0, -2.0], "scene.duration": duration,
-            "simulation.record_rate": 20.0})
-
-    touch = bn.run(scene(0.8), tmp_path / "touch.h5").path
+    touch = bn.run(small_capture(**{"scene.duration": 0.8}), tmp_path / "touch.h5").path
     with h5py.File(touch) as f:
         first = float(f.attrs["first_contact_s"])
     assert 0.1 < first < 0.8
     profile = Profile()
-    paths = [bn.run(scene(round(first - 0.05, 2)), tmp_path / f"{name}.h5", profile=p).path
+    ended = small_capture(**{"scene.duration": round(first - 0.05, 2)})
+    paths = [bn.run(ended, tmp_path / f"{name}.h5", profile=p).path
              for name, p in (("plain", None), ("profiled", profile))]
     with h5py.File(paths[0]) as plain, h5py.File(paths[1]) as profiled:
         assert plain.attrs["first_contact_s"] == profiled.attrs["first_contact_s"] == -1.0
@@ -195,10 +190,7 @@ def test_capture_bench_scores_aggregates_against_a_fine_implicit_reference(tmp_p
     # the deployment's first-order drift; a run scored against itself scores exactly zero.
     from bulletnet.studies.bench import REFERENCE_DT_CONTACT, first_contact_measure, wrap_measure
 
-    scene = bn.load_scenario("capture", {
-        "net.nodes_per_side": 6, "debris.position": [0.0, 0.0, 3.0],
-        "debris.velocity": [0.0, 0.0, -2.0], "scene.duration": 0.8,
-        "simulation.record_rate": 20.0})
+    scene = small_capture(**{"scene.duration": 0.8})
     doc = bench(scene, [Method("fast", "implicit_euler")], [1e-3, 5e-4], tmp_path,
                 measures=[first_contact_measure, wrap_measure], error_key="wrap_rms",
                 log=lambda s: None)
