@@ -140,16 +140,18 @@ def _contact_loop(steps, stage, pos, vel, dv, mass, radius, fixed, contact, dt, 
             contact_stage(pos, vel, dv, mass, radius, fixed, contact, dt, t)
 
 
-def _writable(arrays) -> list[np.ndarray]:
+def _writable(arrays, seen=None) -> list[np.ndarray]:
     """The writable arrays of a tuple of arrays, named tuples and None, and of the tuples in
-    it."""
+    it, each once (the engine's tuples share arrays: its workspace and the grid's)."""
+    seen = set() if seen is None else seen
     out = []
     for x in arrays:
         if isinstance(x, np.ndarray):
-            if x.flags.writeable:
+            if x.flags.writeable and id(x) not in seen:
+                seen.add(id(x))
                 out.append(x)
         elif isinstance(x, tuple):
-            out += _writable(x)
+            out += _writable(x, seen)
     return out
 
 
