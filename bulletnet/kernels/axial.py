@@ -16,7 +16,7 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def add_pair(array, i, j, x, y, z):
     """array[i] += (x, y, z); array[j] -= (x, y, z): an action and its reaction."""
     array[i, 0] += x
@@ -27,7 +27,7 @@ def add_pair(array, i, j, x, y, z):
     array[j, 2] -= z
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def kelvin_voigt(length, rate, rest, k, c, bilateral):
     """Eq. 3's tension [N] of an element of length ``length`` [m] straining at ``rate``
     [m/s] (its lengthening less its rest length's rate): k (l - l_0) + c (l' - l_0'), or
@@ -38,7 +38,7 @@ def kelvin_voigt(length, rate, rest, k, c, bilateral):
     return tension if taut else 0.0
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def tension_law(dx, dy, dz, du, dv, dw, rest, rest_rate, k, c, bilateral):
     """Eq. 3 for one thread from its end-to-end vector (dx, dy, dz) [m] and relative velocity
     (du, dv, dw) [m/s], rest length [m] and its rate [m/s], stiffness [N/m] and damping
@@ -52,7 +52,7 @@ def tension_law(dx, dy, dz, du, dv, dw, rest, rest_rate, k, c, bilateral):
                       rest_rate, k, c, bilateral)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def tension_at(length, dx, dy, dz, du, dv, dw, rest, rest_rate, k, c, bilateral):
     """:func:`tension_law` of a thread whose length ``length`` [m] is known."""
     inv = 1.0 / length
@@ -61,7 +61,7 @@ def tension_at(length, dx, dy, dz, du, dv, dw, rest, rest_rate, k, c, bilateral)
                          bilateral), ex, ey, ez, length)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _rest_rate(rest_rate, p):
     """Thread p's rest-length rate [m/s]: 0.0 without rates (None; nothing read)."""
     if rest_rate is None:
@@ -69,7 +69,7 @@ def _rest_rate(rest_rate, p):
     return rest_rate[p]
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def thread_tension(p, pos, vel, pairs, rest, rest_rate, k, c, bilateral):
     """Tension T [N] of thread p (:func:`tension_law`), its unit direction e (i -> j) and
     length l [m]: (T, ex, ey, ez, l)."""
@@ -126,7 +126,7 @@ def axial_linearization(pos, vel, pairs, rest, rest_rate, k, c, bilateral, dt, f
             across[p] = 0.0
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def block_product(d0, d1, d2, along, across, e0, e1, e2):
     """A thread's block, (along - across) e e^T + across I [kg], times the difference d of its
     end nodes' vectors: across d + (along - across) (d . e) e."""
@@ -134,7 +134,7 @@ def block_product(d0, d1, d2, along, across, e0, e1, e2):
     return across * d0 + s * e0, across * d1 + s * e1, across * d2 + s * e2
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def block_entry(m, g, across, ea, eb, diagonal):
     """m + entry (a, b) of a thread's implicit block (along - across) e e^T + across I [kg],
     from g = along - across [kg], across [kg] and e's components a and b; ``diagonal``:
@@ -142,7 +142,7 @@ def block_entry(m, g, across, ea, eb, diagonal):
     return m + g * ea * eb + across if diagonal else m + g * ea * eb
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def add_block(m, along, across, ex, ey, ez):
     """m + a thread's implicit block, (along - across) e e^T + across I [kg], with m a 3 x 3
     matrix as a row-major 9-tuple (:func:`block_entry` by entry)."""
@@ -158,7 +158,7 @@ def add_block(m, along, across, ex, ey, ez):
             block_entry(m[8], g, across, ez, ez, True))
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def invert3(m):
     """The inverse of a 3 x 3 matrix given and returned as a row-major 9-tuple (cofactors times
     the determinant's reciprocal: one division, not nine)."""

@@ -116,7 +116,7 @@ def cable_energy(length: np.ndarray, rest: np.ndarray, rigidity: np.ndarray) -> 
     return np.vectorize(elastic_energy, otypes=[float])(length, rest, rigidity)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _span(pos, nodes, v):
     """Vector from vertex v to vertex v + 1 [m]."""
     a, b = nodes[v], nodes[v + 1]
@@ -273,7 +273,7 @@ def add_cable_blocks(cables, flat):
                 flat[i, a] = m[a]
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _unit(x, y, z):
     """(x, y, z) / |(x, y, z)|, or zero for the zero vector."""
     norm = np.sqrt(x * x + y * y + z * z)
@@ -281,7 +281,7 @@ def _unit(x, y, z):
     return x * inv, y * inv, z * inv
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def elastic_energy(length, rest, ea):
     """Elastic energy E A (L - L_0)^2 / (2 L_0) [J] of one cable of length L [m], rest length
     L_0 [m] and rigidity E A [N]; 0 if slack."""

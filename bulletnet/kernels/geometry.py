@@ -35,7 +35,7 @@ segment's exact distance (``math.hypot``): a computed square lies a few ulp from
 one, so no segment left out could have the least exact distance."""
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _segment(rho, y, ax, ay, bx, by):
     """The point of the segment (ax, ay)-(bx, by) nearest (rho, y): its coordinates, their
     offsets from (rho, y) and the offsets' squared length."""
@@ -121,7 +121,7 @@ def sphere_distance(x, y, z, r):
     return length - r, x / length, y / length, z / length
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _corner_dots(x, y, z, tri, k):
     """(p - corner k) . (b - a) and (p - corner k) . (c - a) for p = (x, y, z) and the
     triangle ``tri`` (3, 3), rows a, b, c."""
@@ -133,7 +133,7 @@ def _corner_dots(x, y, z, tri, k):
     return ab, ac
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _between(tri, i, j, t):
     """The point of ``tri`` (3, 3) a fraction t of the way from corner i to corner j."""
     return (tri[i, 0] + t * (tri[j, 0] - tri[i, 0]), tri[i, 1] + t * (tri[j, 1] - tri[i, 1]),
@@ -171,7 +171,7 @@ def triangle_closest(x, y, z, tri):
     return cx, cy, cz, feature
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _box_gap2(box, x, y, z):
     """Squared distance [m^2] from (x, y, z) [m] to the box (lowest x, y, z, highest x, y,
     z) [m]; 0 inside."""

@@ -70,7 +70,7 @@ def orbit_arrays(n: float, radial, along, origin) -> OrbitArrays:
                        origin=np.asarray(origin, dtype=float).copy())
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def hcw_acceleration(orbit, px, py, pz, vx, vy, vz):
     """The HCW acceleration [m/s^2] (ax, ay, az) in the scene's frame of a body at (px, py,
     pz) [m] moving at (vx, vy, vz) [m/s] (module doc)."""

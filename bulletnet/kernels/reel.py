@@ -100,7 +100,7 @@ def reel_arrays(pairs: np.ndarray, rest: np.ndarray, stiffness: np.ndarray,
         length=np.full(1, float(rest[chain].sum())), work=np.zeros(1))
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _length_rate(pos, vel, i, j):
     """Length [m] of the thread from node i to node j and its lengthening rate [m/s]."""
     dx, dy, dz = pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2]

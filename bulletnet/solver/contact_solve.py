@@ -167,7 +167,7 @@ def carry_pairs(solve, pairs, count, old_count, pair_gap, nodes):
                 break
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def add_debris_impulse(imp, r, d):
     """Add the impulse ``d`` (3,) [N s] at ``r`` (3,) [m] from the debris' centre of mass to
     its force and moment impulse ``imp`` (6,)."""
@@ -179,7 +179,7 @@ def add_debris_impulse(imp, r, d):
     imp[5] += r[0] * d[1] - r[1] * d[0]
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _forget(predicted, offset, warm, k):
     """Contact ``k`` out of reach: no predicted gap, offset or warm start."""
     predicted[k] = np.inf
@@ -187,7 +187,7 @@ def _forget(predicted, offset, warm, k):
     warm[k, :] = 0.0
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _absorb(s0, offset, predicted, stats):
     """The offset [m] of a contact at measured start gap ``s0`` [m]: its last ``offset``,
     no larger than the true overlap (-s0, or 0), plus the part of the gap below the one the

@@ -243,7 +243,7 @@ def _norm(a):
     return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _slip(rel, n):
     """Remove from the relative velocity ``rel`` [m/s] (3,) its component along the unit
     normal ``n``, in place; return the remaining slip speed [m/s]."""

@@ -36,7 +36,7 @@ CLEAR_MARGIN = 1e-9
 points (~1e-15 m at the debris' size)."""
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def debris_pose(com, quat, com_body):
     """The debris' rotation (3, 3) [-] and body-frame origin (3,) [m] from its centre of
     mass ``com`` [m], orientation ``quat`` (1, 4) and centre of mass in its body frame."""
@@ -58,7 +58,7 @@ def surface_speed(contact):
             + math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * contact.bound[0])
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _row_norm(a, i):
     """Euclidean norm of row i of ``a`` (N, 3), without making the row a view."""
     return math.sqrt(a[i, 0] * a[i, 0] + a[i, 1] * a[i, 1] + a[i, 2] * a[i, 2])

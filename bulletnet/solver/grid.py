@@ -307,7 +307,7 @@ def store(grid: Grid, state) -> None:
 ONE = U(1)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _neighbours(start, h, v, a, i, ns, sign):
     """``start`` plus component a of node i's four grid-thread entries in the pair-list
     kernels' order and signs, - v(i - Ns) - h(i - 1) + h(i) + v(i) (all four negated with
@@ -317,7 +317,7 @@ def _neighbours(start, h, v, a, i, ns, sign):
         + sign * v[a, i + ns]
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _row_tension(x, v, t, j, rest, k, c):
     """:func:`~bulletnet.kernels.axial.tension_law` of thread t, from node t to node j of the
     (3, L) rows x [m] and v [m/s]: (T [N], ex, ey, ez, l [m]) (a grid thread's rest length
@@ -327,7 +327,7 @@ def _row_tension(x, v, t, j, rest, k, c):
                        k[t], c[t], False)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _store_tension(tension_e, col, tension, ex, ey, ez):
     """Column ``col`` of ``tension_e`` <- T e [N] (zero for a slack thread, whose direction
     may not be finite)."""
@@ -504,7 +504,7 @@ def _apply(grid, rows, out):
     add_cable_product(rows_view, grid.cables, out_view, 0.0, 1.0)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _thread_entry(m, blocks, row, axis, col, a, b):
     """m + entry (a, b) of the implicit block of the thread at column ``col`` of blocks[row],
     axis (its along, across, e), or m itself for a slack thread (its terms are zeroed, not
@@ -528,7 +528,7 @@ def _block_entry(grid, i, ns, a, b):
     return _thread_entry(m, blocks, U(2), ev, ns + i, a, b)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _store(rows, i, m):
     """Column i of (9, L) ``rows`` <- the 9-tuple m (stored entry by entry: a tuple indexed
     in a loop would compile to a jump table and keep the node loop from vectorizing)."""
@@ -754,7 +754,7 @@ def break_threads(grid, views, pairs, rest, k_a, c_a, k_t, c_t, k_b, c_b, breaka
         _cut(grid.o_k, grid.o_c, grid.o_bend, q)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def _cut(k, c, bend, i):
     """Thread i of a stencil's (or the other threads') rows carries nothing: its axial
     stiffness k [N/m], damping c [N s/m] and bending parameters bend[0..3] zeroed."""

@@ -47,7 +47,7 @@ def _dot(a, b, count):
     return s
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, error_model="numpy")
 def dot_terms(r0, r1, r2, z0, z1, z2):
     """One node's terms of r . z and r . r, as :func:`solve` sums them (``precondition``
     adds them up node by node in node order, in the pass that computes z)."""
