@@ -412,21 +412,6 @@ def angular_gains(method, weight, dt, model, gain):
         gain[i] = 0.0 if fixed[i] else dt / (inertia[i] + h * rot_c[i] + h * h * rot_k[i])
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
-def _rotate(grid, quat, omega, gain, torque, held, steps, dt, work):
-    """:func:`~bulletnet.kernels.bending.advance_rotation` of (quat, omega) (N, 4), (N, 3) on
-    their component rows: on the grid (``grid`` not None) its own rows, C-contiguous, so that
-    the series' loop vectorizes (a view's strides are not known when it is compiled and that
-    loop then stays scalar: 8.7 against 3.6 us for 470 nodes); on the pair list the arrays'
-    transposes."""
-    if grid is None:
-        advance_rotation(quat.T, omega.T, gain, torque, held, steps, dt, work.rotation,
-                         work.turned)
-    else:
-        advance_rotation(grid.q, grid.w, gain, torque, held, steps, dt, work.rotation,
-                         work.turned)
-
-
 @nb.njit(cache=True, error_model="numpy")
 def bending_weight(bending, every, work):
     """Steps the bending springs evaluated this step stand for: ``every`` on every
@@ -518,7 +503,13 @@ def advance(on_grid: bool, implicit: bool):
         n = pos.shape[0]
         mass, fixed, radius = model.mass, model.fixed, model.radius
         torque, dv, gain = work.torque, work.dv, work.gain
-        pending = 0  # steps of rotation not yet applied to (quat, omega)
+        pending = np.int64(0)  # steps of rotation not yet applied to (quat, omega) (typed
+        # int64 from the start: a literal 0 would compile advance_rotation once more for it)
+        if quat is not None:  # their component rows, advanced by advance_rotation: on the
+            # grid its own rows, C-contiguous, so that the series' loop vectorizes (a view's
+            # strides are not known when it is compiled and that loop then stays scalar: 8.7
+            # against 3.6 us for 470 nodes); on the pair list the arrays' transposes
+            q_rows, w_rows = (grid.q, grid.w) if on_grid else (quat.T, omega.T)
         taken = 0
         for k in range(steps):
             if contact is not None:
@@ -529,8 +520,9 @@ def advance(on_grid: bool, implicit: bool):
             if quat is not None:
                 weight = bending_weight(True, every, work)
                 if weight > 0.0 and pending > 0:
-                    _rotate(grid, quat, omega, gain, torque, hold, pending, dt, work)
-                    pending = 0
+                    advance_rotation(q_rows, w_rows, gain, torque, hold, pending, dt,
+                                     work.rotation, work.turned)
+                    pending = np.int64(0)
             if on_grid:  # the grid's stencils (bending as in external_forces)
                 if quat is not None:
                     if weight > 0.0:
@@ -583,7 +575,8 @@ def advance(on_grid: bool, implicit: bool):
             taken += 1
         if quat is not None:
             if pending > 0:
-                _rotate(grid, quat, omega, gain, torque, hold, pending, dt, work)
+                advance_rotation(q_rows, w_rows, gain, torque, hold, pending, dt,
+                                 work.rotation, work.turned)
         return taken
 
     return advance_loop
