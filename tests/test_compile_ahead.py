@@ -23,10 +23,10 @@ from bulletnet.sim.compile_ahead import is_cached
 ])
 def test_kernel_groups_are_the_loops_own_specializations(tmp_path, monkeypatch, overrides):
     # Reference: numba's record of the signatures each dispatcher compiled (or loaded) for the
-    # run's loop: every (kernel, arguments) of the groups is one of them, for the arguments'
-    # types as the loop passes them. The loop is a new dispatcher compiled here, not loaded
-    # from numba's cache (a loaded loop types none of the kernels it calls, so their records
-    # would be empty).
+    # run's loop and its frames' thread loads: every (kernel, arguments) of the groups is one
+    # of them, for the arguments' types as the loop (or the frame) passes them. The loop is a
+    # new dispatcher compiled here, not loaded from numba's cache (a loaded loop types none of
+    # the kernels it calls, so their records would be empty).
     from numba.core.caching import NullCache
 
     from bulletnet.solver import integrators
@@ -43,7 +43,7 @@ def test_kernel_groups_are_the_loops_own_specializations(tmp_path, monkeypatch, 
     bending = overrides.get("bending.enabled", False) and on_grid
     # (the grid's symplectic step is inlined into the loop whole: no group of its own)
     inlined = on_grid and overrides.get("simulation.integrator") == "symplectic_euler"
-    assert set(groups) == ({"contact"} | ({"bending"} if bending else set())
+    assert set(groups) == ({"contact", "frame"} | ({"bending"} if bending else set())
                            | (set() if inlined else {"step"}))
     for calls in groups.values():
         for dispatcher, args in calls:

@@ -323,19 +323,26 @@ class Engine(ABC):
     def thread_loads(self, state: NetState) -> tuple[np.ndarray, np.ndarray]:
         """Axial tension (Eq. 3) and shear force magnitude of every thread at ``state`` [N],
         each shape (P,); the shear is zero without bending."""
+        for kernel, args in self.loads_calls(state):
+            kernel(*args)
+        return self._loads_work.tension.copy(), self._loads_work.shear.copy()
+
+    def loads_calls(self, state: NetState) -> list[tuple]:
+        """The compiled calls :meth:`thread_loads` makes at ``state``, as (dispatcher,
+        arguments): the forces alone, as a symplectic step takes them (not through
+        ``increment``, whose implicit branch would be compiled once more for these arrays'
+        layout: 10 s), into a workspace of their own."""
         work, model = self._loads_work, self.arrays
         if model.cables is not None:
             # the cables' kernel writes the tension, length and damper force it evaluates,
             # which the winches read at the next step: a frame's loads must not change the run
             model = model._replace(cables=type(model.cables)(*(a.copy() for a in model.cables)))
         quat, omega = self.rotations(state)
-        # the forces alone, as a symplectic step takes them (not through `increment`, whose
-        # implicit branch would be compiled once more for these arrays' layout: 10 s)
-        integrators.external_forces(state.position, state.velocity, quat, omega, model,
-                                    work, self.base_forces(),
-                                    1.0 if self.bending else 0.0, False)
-        integrators.symplectic_increment(state.position, state.velocity, model, work, 1.0)
-        return work.tension.copy(), work.shear.copy()
+        return [(integrators.external_forces,
+                 (state.position, state.velocity, quat, omega, model, work, self.base_forces(),
+                  1.0 if self.bending else 0.0, False)),
+                (integrators.symplectic_increment,
+                 (state.position, state.velocity, model, work, 1.0))]
 
     def stats(self) -> dict:
         """Counters of the run so far (steps, solver iterations; with contact, the overlap

@@ -100,13 +100,14 @@ class FastEngine(Engine):
         the grid with symplectic Euler, whose step is inlined into the loop whole, so the
         loop's own compilation is its), with bending on the grid ``bending``, with contact
         ``contact`` (the contact stage), with a tow on another integrator
-        (``thrust.integrator``) ``tow`` (that integrator's loop). For compiling groups apart,
+        (``thrust.integrator``) ``tow`` (that integrator's loop), and ``frame`` (the thread
+        loads each recorded frame computes, :meth:`loads_calls`). For compiling groups apart,
         on both cores (:mod:`bulletnet.sim.compile_ahead`); empty for a free net, whose first
         run compiles little."""
         if self.free:
             return {}
         pos, vel, quat, omega = self._loop_arrays(state)
-        groups = {}
+        groups = {"frame": self.loads_calls(state)}
         if self.grid is not None:
             if self.implicit:
                 groups["step"] = [(grid_kernels.implicit_step, (
