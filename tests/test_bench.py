@@ -117,6 +117,33 @@ def test_profile_accounts_for_the_run_loop(tmp_path):
                for line in report(profile, result.wall_time_s, False))
 
 
+def test_compiling_in_the_loop_is_counted_apart(tmp_path, monkeypatch):
+    # Reference: numba's own timer of the step loop's compilation. A first run compiles its
+    # step loop at the first step, inside the run loop: the run records that time as
+    # compile_time_s (at least the loop's own compile, at most the loop's wall time) and the
+    # profile books it as compiling, not as the engine's step; a second run of the same
+    # loop, compiled by then, compiles nothing.
+    from numba.core.caching import NullCache
+
+    from bulletnet.sim.profiling import COMPILING
+    from bulletnet.solver import integrators
+
+    scene = small_capture(**{"scene.duration": 0.05})
+    loop = integrators.advance.__wrapped__(True, True)  # a new dispatcher, compiled here
+    loop._cache = NullCache()
+    monkeypatch.setattr(integrators, "advance", lambda on_grid, implicit: loop)
+    profile = Profile()
+    first = bn.run(scene, tmp_path / "first.h5", profile=profile)
+    [compiled] = loop.overloads.values()
+    assert (compiled.metadata["timers"]["compiler_lock"] <= first.compile_time_s
+            < first.wall_time_s)
+    assert profile.seconds[COMPILING] == first.compile_time_s
+    assert profile.seconds[ENGINE] <= first.wall_time_s - first.compile_time_s
+    assert bn.open_recording(tmp_path / "first.h5").attrs["compile_time_s"] == \
+        first.compile_time_s
+    assert bn.run(scene, tmp_path / "second.h5").compile_time_s == 0.0
+
+
 def test_profile_leaves_the_run_as_it_was(tmp_path):
     # Reference: the same run without the profile, bit for bit. The profile's calibration
     # steps the engine on past the run's end (here across the net's first touch of the

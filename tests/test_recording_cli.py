@@ -42,7 +42,7 @@ def test_cli_run_writes_documented_layout(tmp_path):
             assert "units" in f[name].attrs, name
         assert f["nodes/position"].attrs["units"] == "m"
         for key in ("scenario", "engine", "integrator", "dt", "bending", "status",
-                    "wall_time_s", "bulletnet_version", "format_version"):
+                    "wall_time_s", "compile_time_s", "bulletnet_version", "format_version"):
             assert key in f.attrs, key
         assert f.attrs["status"] == "completed"
         scene = loads(f.attrs["scenario"])

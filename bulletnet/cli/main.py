@@ -477,11 +477,14 @@ def cmd_run(args) -> int:
     if progress:
         progress.done()
     steps = result.stats.get("steps", 0)
+    in_loop = (f", {result.compile_time_s:.1f} s of it compiling" if result.compile_time_s
+               else "")
     compiling = (f" (first run: {progress.compile_s:.1f} s compiling kernels)"
                  if progress and progress.compile_s else "")
+    stepping = result.wall_time_s - result.compile_time_s  # the loop's own time [s]
     print(f"{result.status}: {result.frames} frames, {steps} steps, "
-          f"{result.wall_time_s:.2f} s wall{compiling}, real-time factor "
-          f"{result.state.time / max(result.wall_time_s, 1e-9):.3g} -> {result.path}")
+          f"{result.wall_time_s:.2f} s wall{in_loop}{compiling}, real-time factor "
+          f"{result.state.time / max(stepping, 1e-9):.3g} -> {result.path}")
     if result.outcome:
         print("outcome: " + _outcome_text(result.outcome, result.outcome_time_s,
                                           result.outcome_reason))

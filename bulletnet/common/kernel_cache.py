@@ -53,11 +53,12 @@ def configure() -> None:
 
 
 @contextlib.contextmanager
-def watch_compilation(on_start: Callable[[], None],
-                      on_end: Callable[[float], None]) -> Iterator[None]:
+def watch_compilation(on_start: Callable[[], None] | None = None,
+                      on_end: Callable[[float], None] | None = None) -> Iterator[None]:
     """Inside the block, call ``on_start()`` when numba starts compiling a kernel its cache
     lacks and ``on_end(seconds)`` when that compilation (with the kernels it compiles in
-    turn) ends, with its wall time [s]. Kernels loaded from the cache call neither."""
+    turn) ends, with its wall time [s] (None: no call). Kernels loaded from the cache call
+    neither."""
     from numba.core import event
 
     class _Listener(event.Listener):
@@ -68,11 +69,12 @@ def watch_compilation(on_start: Callable[[], None],
             self.depth += 1
             if self.depth == 1:
                 self.start = time.perf_counter()
-                on_start()
+                if on_start is not None:
+                    on_start()
 
         def on_end(self, ev):
             self.depth -= 1
-            if self.depth == 0:
+            if self.depth == 0 and on_end is not None:
                 on_end(time.perf_counter() - self.start)
 
     with event.install_listener("numba:compile", _Listener()):

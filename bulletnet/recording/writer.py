@@ -72,11 +72,12 @@ since the frame before, each step's the one it computed its forces from;
 
 Root attributes: ``scenario`` (the TOML as run, overrides applied), ``engine``,
 ``integrator``, ``dt`` [s], ``record_rate`` [Hz], ``bending``, ``status`` (running /
-completed / interrupted / diverged), ``message``, ``wall_time_s`` [s], ``bulletnet_version``,
-``format_version``, ``nodes_per_side``; with contact ``first_contact_s`` and
-``first_self_contact_s`` [s] (to the step; -1: none); with ``[outcome]`` on, ``outcome``
-(captured, escaped, missed or undecided), ``outcome_time_s``, when it was decided [s]
-(-1: undecided), and ``outcome_reason``, why in words
+completed / interrupted / diverged), ``message``, ``wall_time_s`` [s] (the run loop's) and
+``compile_time_s`` [s] (of it, numba compiling kernels its cache lacked: a first run),
+``bulletnet_version``, ``format_version``, ``nodes_per_side``; with contact
+``first_contact_s`` and ``first_self_contact_s`` [s] (to the step; -1: none); with
+``[outcome]`` on, ``outcome`` (captured, escaped, missed or undecided), ``outcome_time_s``,
+when it was decided [s] (-1: undecided), and ``outcome_reason``, why in words
 (:data:`bulletnet.analysis.capture_score.REASONS`; recordings before it lack it); with
 ``[reel]``, ``reel_start_s``, when the reel started [s] (-1: never). ``/debris``
 carries

@@ -19,6 +19,7 @@ from ..analysis.capture_score import ScoreGeometry, interior_samples
 from ..analysis.stability import Limits, analytical_limits, cable_frequency
 from ..common import interrupt
 from ..common.errors import BulletnetError, DivergenceError, ScenarioError
+from ..common.kernel_cache import watch_compilation
 from ..engines import make_engine
 from ..model.builder import build_model, initial_state
 from ..model.scenario import Scenario, to_toml
@@ -58,6 +59,9 @@ class RunResult:
     """When the outcome was decided [s]; -1 if undecided or not judged."""
     outcome_reason: str = ""
     """Why, in words (:data:`bulletnet.analysis.capture_score.REASONS`); "" if not judged."""
+    compile_time_s: float = 0.0
+    """Of ``wall_time_s``, the time numba spent compiling kernels its cache lacked [s]: a
+    first run compiles its step loop inside the run loop (0 once they are cached)."""
 
 
 def frame_times(duration: float, record_rate: float) -> np.ndarray:
@@ -206,29 +210,31 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
     finite_time, finite_position = state.time, start_position.copy()
     finite_rest = engine.cables.rest.copy()
     status, message, error = "running", "", None
+    compiling = _Compiling(profile)
     start = _time.perf_counter()
     try:
-        for t in times[1:]:
-            if stop:
-                break
-            engine.advance(state, float(t))
-            reason = _check(state, limit)
-            if reason:
-                limits = analytical_limits(model, start_position, scenario.bending.enabled)
-                if model.cable_count:  # the cables at the last finite frame, as reeled in
-                    omega = cable_frequency(model, finite_position, finite_rest)
-                    limits = dataclasses.replace(limits, cable_omega=omega,
-                                                 cable_time=finite_time)
-                raise _divergence(reason, state, engine.dt, engine.integrator, limits,
-                                  scenario.contact.enabled
-                                  and scenario.contact.model == "exact")
-            if model.cable_count:
-                finite_time, finite_position[:] = state.time, state.position
-                finite_rest[:] = engine.cables.rest
-            interrupt.check()  # a stop request the signal's own exception lost
-            stop = take_frame()
-            if progress is not None:
-                progress(state.time, scenario.scene.duration, _time.perf_counter() - start)
+        with watch_compilation(on_end=compiling.add):
+            for t in times[1:]:
+                if stop:
+                    break
+                engine.advance(state, float(t))
+                reason = _check(state, limit)
+                if reason:
+                    limits = analytical_limits(model, start_position, scenario.bending.enabled)
+                    if model.cable_count:  # the cables at the last finite frame, as reeled in
+                        omega = cable_frequency(model, finite_position, finite_rest)
+                        limits = dataclasses.replace(limits, cable_omega=omega,
+                                                     cable_time=finite_time)
+                    raise _divergence(reason, state, engine.dt, engine.integrator, limits,
+                                      scenario.contact.enabled
+                                      and scenario.contact.model == "exact")
+                if model.cable_count:
+                    finite_time, finite_position[:] = state.time, state.position
+                    finite_rest[:] = engine.cables.rest
+                interrupt.check()  # a stop request the signal's own exception lost
+                stop = take_frame()
+                if progress is not None:
+                    progress(state.time, scenario.scene.duration, _time.perf_counter() - start)
         status = "completed"
     except KeyboardInterrupt as exc:
         interrupt.acted()
@@ -240,7 +246,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         if status == "running":  # an unexpected error: keep the frames, say so
             status, message = "interrupted", "stopped by an internal error"
         stats = engine.stats()
-        attrs = {"message": message, "wall_time_s": wall,
+        attrs = {"message": message, "wall_time_s": wall, "compile_time_s": compiling.seconds,
                  **{f"stats_{k}": v for k, v in stats.items()}}
         with _signals_deferred():  # a second Ctrl-C must not leave the recording half written
             for observer in sorted(observers, key=lambda o: o.finish_order):
@@ -251,10 +257,24 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
         raise error
     recording = next((o for o in observers if isinstance(o, Recording)), None)
     return RunResult(path=None if recording is None else recording.path, status=status,
-                     state=state, wall_time_s=wall, stats=stats,
+                     state=state, wall_time_s=wall, compile_time_s=compiling.seconds,
+                     stats=stats,
                      frames=0 if recording is None else recording.recorder.frames,
                      **{k: attrs[k] for k in ("outcome", "outcome_time_s", "outcome_reason")
                         if k in attrs})
+
+
+class _Compiling:
+    """The seconds numba spends compiling kernels its cache lacks inside the run loop (a first
+    run's step loop, a kernel first called there), kept apart in ``profile`` too."""
+
+    def __init__(self, profile: Profile | None):
+        self.seconds, self.profile = 0.0, profile
+
+    def add(self, seconds: float) -> None:
+        self.seconds += seconds
+        if self.profile is not None:
+            self.profile.compiled(seconds)
 
 
 def _observers(scenario: Scenario, model, engine, state: NetState,

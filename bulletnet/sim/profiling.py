@@ -7,7 +7,9 @@ Two honest measurements, both off unless asked for:
    frame), the recorder's ``append`` and its HDF5 ``flush``, and the outcome monitor's
    ``observe`` (the capture score of each frame, scenes with ``[outcome]`` on). :meth:`Profile.wrap`
    replaces those methods on the instances for the run, each section timed exclusive of the
-   sections it calls (a flush inside an append counts as I/O, not recording).
+   sections it calls (a flush inside an append counts as I/O, not recording). numba
+   compiling kernels its cache lacks inside the loop (a first run's step loop, at the
+   first step) is a section of its own (:meth:`Profile.compiled`), not the engine's.
 2. **The split inside the compiled step**, from a short calibration after the run on a copy
    of its last state: the same number of steps timed as the force kernels alone (gravity,
    loads, axial threads, bending on its multirate schedule) and as full engine steps, three
@@ -58,6 +60,14 @@ class Profile:
         """Stop timing the wrapped methods."""
         self.active = False
 
+    def compiled(self, seconds: float) -> None:
+        """numba compiled kernels for ``seconds`` [s] inside the section now timed: counted
+        as :data:`COMPILING`, not as that section's (a first run compiles its step loop at
+        the first step)."""
+        if self.active:
+            self.seconds[COMPILING] = self.seconds.get(COMPILING, 0.0) + seconds
+            self._inner += seconds  # what the enclosing section leaves out of its own time
+
     def wrap(self, obj, method: str, section: str) -> None:
         """Time every call of ``obj.method`` into ``section`` from now on (instance only)."""
         call = getattr(obj, method)
@@ -83,6 +93,7 @@ LOADS = "thread loads (recorded tensions)"
 RECORDING = "recording (HDF5 append)"
 IO = "I/O (HDF5 flush)"
 OUTCOME = "capture score (outcome monitor)"
+COMPILING = "compiling (numba: kernels not yet cached)"
 
 
 def instrument(profile: Profile, engine, timed=()) -> None:
@@ -266,8 +277,9 @@ def report(profile: Profile, total_s: float, contact: bool) -> list[str]:
             rows.append(("contact (collision, normal law, friction)", engine * touch))
     else:
         rows.append((ENGINE + " (adaptive: not split)", engine))
-    rows += [(name, sections.get(name, 0.0)) for name in (LOADS, RECORDING, IO, OUTCOME)
-             if name != OUTCOME or OUTCOME in sections]
+    rows += [(name, sections.get(name, 0.0))
+             for name in (LOADS, RECORDING, IO, OUTCOME, COMPILING)
+             if name not in (OUTCOME, COMPILING) or name in sections]
     rows.append(("other (divergence checks, progress)",
                  max(0.0, total_s - engine - sum(sections.values()))))
     lines = [f"profile: {total_s:.3f} s wall in the run loop"]
