@@ -29,6 +29,27 @@ def small_capture(**overrides):
         "simulation.record_rate": 20.0, **overrides})
 
 
+def uncached_loops(monkeypatch) -> dict:
+    """Have the runs build each step loop (:func:`bulletnet.solver.integrators.advance`) anew,
+    without numba's cache, so that a run compiles it in this process, typing the kernels it
+    calls (a loop loaded from the cache types none); returns the loops as they are built,
+    by (on_grid, implicit)."""
+    from numba.core.caching import NullCache
+
+    from bulletnet.solver import integrators
+
+    loops, build = {}, integrators.advance.__wrapped__
+
+    def anew(on_grid, implicit):
+        if (on_grid, implicit) not in loops:
+            loops[on_grid, implicit] = build(on_grid, implicit)
+            loops[on_grid, implicit]._cache = NullCache()
+        return loops[on_grid, implicit]
+
+    monkeypatch.setattr(integrators, "advance", anew)
+    return loops
+
+
 def small_tow(**overrides):
     """:func:`small_capture` in orbit with a 3 m tether (3 threads) to a 10 kg chaser, which
     burns 5 N (ZV-shaped) from 0.2 s, before the net holds the debris (the tow, judged with

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from conftest import small_capture, small_scene
+from conftest import small_capture, small_scene, uncached_loops
 from test_recording_cli import cli
 
 import bulletnet as bn
@@ -123,18 +123,13 @@ def test_compiling_in_the_loop_is_counted_apart(tmp_path, monkeypatch):
     # compile_time_s (at least the loop's own compile, at most the loop's wall time) and the
     # profile books it as compiling, not as the engine's step; a second run of the same
     # loop, compiled by then, compiles nothing.
-    from numba.core.caching import NullCache
-
     from bulletnet.sim.profiling import COMPILING
-    from bulletnet.solver import integrators
 
     scene = small_capture(**{"scene.duration": 0.05})
-    loop = integrators.advance.__wrapped__(True, True)  # a new dispatcher, compiled here
-    loop._cache = NullCache()
-    monkeypatch.setattr(integrators, "advance", lambda on_grid, implicit: loop)
+    loops = uncached_loops(monkeypatch)
     profile = Profile()
     first = bn.run(scene, tmp_path / "first.h5", profile=profile)
-    [compiled] = loop.overloads.values()
+    [compiled] = loops[True, True].overloads.values()  # (the grid's implicit step)
     assert (compiled.metadata["timers"]["compiler_lock"] <= first.compile_time_s
             < first.wall_time_s)
     assert profile.seconds[COMPILING] == first.compile_time_s

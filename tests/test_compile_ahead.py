@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conftest import small_capture, small_tow
+from conftest import small_capture, small_tow, uncached_loops
 
 import bulletnet as bn
 from bulletnet.common.direct_call import signature
@@ -27,16 +27,10 @@ def test_kernel_groups_are_the_loops_own_specializations(tmp_path, monkeypatch, 
     # of them, for the arguments' types as the loop (or the frame) passes them. The loop is a
     # new dispatcher compiled here, not loaded from numba's cache (a loaded loop types none of
     # the kernels it calls, so their records would be empty).
-    from numba.core.caching import NullCache
-
-    from bulletnet.solver import integrators
-
     scene = small_capture(**{"scene.duration": 0.1, **overrides})
     model = bn.build_model(scene)
     engine = make_engine(scene, model)
-    loop = integrators.advance.__wrapped__(engine.grid is not None, engine.implicit)  # anew
-    loop._cache = NullCache()
-    monkeypatch.setattr(integrators, "advance", lambda on_grid, implicit: loop)
+    uncached_loops(monkeypatch)
     bn.run(scene, tmp_path / "run.h5")
     groups = engine.kernel_groups(bn.initial_state(scene, model))
     on_grid = "simulation.kernels" not in overrides
@@ -63,20 +57,9 @@ def test_the_tow_group_is_the_loop_the_burn_switches_to(tmp_path, monkeypatch):
     # run switches to symplectic Euler at the burn (thrust.integrator), and the group `tow`
     # names that loop for the arguments' types it is called with; a scene without the switch
     # has no such group.
-    from numba.core.caching import NullCache
-
     from bulletnet.sim import loop as run_loop
-    from bulletnet.solver import integrators
 
-    loops, build = {}, integrators.advance.__wrapped__
-
-    def anew(on_grid, implicit):
-        if (on_grid, implicit) not in loops:
-            loops[on_grid, implicit] = build(on_grid, implicit)
-            loops[on_grid, implicit]._cache = NullCache()
-        return loops[on_grid, implicit]
-
-    monkeypatch.setattr(integrators, "advance", anew)
+    loops = uncached_loops(monkeypatch)
     monkeypatch.setattr(run_loop, "compile_ahead", lambda *args: None)  # no second process
     scene = small_tow(**{"thrust.integrator": "symplectic_euler", "thrust.dt": 8e-6})
     model = bn.build_model(scene)
