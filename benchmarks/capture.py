@@ -7,11 +7,13 @@
    sound run has none). The figures of the implicit runs (``bulletnet plot``, Fig. 11
    snapshots) go to OUT/figures/.
 2. Step convergence of the aggregate measures (the capture is chaotic: positions are not
-   comparable over 120 s): the first 20 s at dt = 1e-3 ... 1.25e-4 s against the finest.
+   comparable over 120 s): the first 20 s at dt = 1e-3 ... 1.25e-4 s, each at the CG
+   tolerance :data:`REFERENCE_TOLERANCE` (the step's error alone) and at the scene's,
+   against the finest step at :data:`REFERENCE_TOLERANCE` (the reference).
    ``--tolerance`` (only this, into OUT/capture_tolerance.json): the same 20 s at the
    scene's 1e-3 s with the implicit solver's CG tolerance from 1e-6 to 3e-3, without and with
-   bending, against the finest step's run of each: what the tolerance adds to the step's
-   error, and what it saves (CG iterations a step, loop time).
+   bending, against the reference of each: what the tolerance adds to the step's error, and
+   what it saves (CG iterations a step, loop time).
 3. ``fast`` against ``bullet`` (PyBullet does the contact, per-body values fitted to the
    pairs) over the first second of contact, on a head-on variant (debris 5 m away, closing at
    2 m/s, contact at ~1.5 s): Eq. 14 RMSE, first-contact agreement, wrap; wall times.
@@ -33,7 +35,10 @@ from bulletnet.analysis.plots import plot_recordings
 
 FIG11_TIMES = [9.0, 14.0, 27.0, 44.0, 82.0]
 STEPS = [1e-3, 5e-4, 2.5e-4, 1.25e-4]
-"""The convergence's steps [s], the last the reference."""
+"""The convergence's steps [s], the last the reference's."""
+REFERENCE_TOLERANCE = 1e-6
+"""The CG tolerance [-] of the reference and of the convergence's own runs: the solver's error
+two orders below the scene's, so that what is left is the step's."""
 TOLERANCES = [1e-6, 1e-4, 3e-4, 1e-3, 3e-3]
 """The CG tolerances [-] compared at the scene's step."""
 HEAD_ON = {"debris.position": [0.0, 0.0, 5.0], "debris.velocity": [0.0, 0.0, -2.0],
@@ -73,27 +78,30 @@ def against(rec: bn.Recording, ref: bn.Recording) -> dict:
                 (bn.metrics.mouth_area(rec)[:n] - bn.metrics.mouth_area(ref)[:n]) ** 2)))}
 
 
-def first_20s(out, dt: float, bending: bool,
+def first_20s(out, dt: float, bending: bool, tolerance: float | None = None,
               reuse: bool = False) -> tuple[float | None, bn.Recording, str]:
-    """The capture's first 20 s at step ``dt`` [s], without or with bending, recorded in OUT
-    (the step convergence's runs and the tolerance's references): (wall [s], recording,
-    status); with ``reuse``, a completed recording already in OUT is taken (wall None)."""
-    path = out / f"converge_{dt:g}{'_bending' if bending else ''}.h5"
+    """The capture's first 20 s at step ``dt`` [s], without or with bending, at the CG
+    ``tolerance`` [-] (None: the scene's), recorded in OUT (the step convergence's runs and
+    the tolerance's references): (wall [s], recording, status); with ``reuse``, a completed
+    recording already in OUT is taken (wall None)."""
+    path = out / (f"converge_{dt:g}{'_bending' if bending else ''}"
+                  f"{'' if tolerance is None else f'_tol{tolerance:g}'}.h5")
     if reuse and path.exists():
         rec = bn.open_recording(path)
         if rec.status == "completed":
             return None, rec, "completed"
-    return run({"scene.duration": 20.0, "simulation.dt": dt, "bending.enabled": bending},
-               path)
+    solver = {} if tolerance is None else {"simulation.cg_tolerance": tolerance}
+    return run({"scene.duration": 20.0, "simulation.dt": dt, "bending.enabled": bending,
+                **solver}, path)
 
 
 def tolerance(out) -> list[dict]:
     """The first 20 s at the scene's step by CG tolerance, without and with bending (module
-    doc, 2.): errors against the finest step's run (:func:`first_20s`), CG iterations a step,
+    doc, 2.): errors against the reference (:func:`first_20s`), CG iterations a step,
     loop and run wall [s]."""
     rows = []
     for bending in (False, True):
-        ref = first_20s(out, STEPS[-1], bending, reuse=True)[1]
+        ref = first_20s(out, STEPS[-1], bending, REFERENCE_TOLERANCE, reuse=True)[1]
         for tol in TOLERANCES:
             wall, rec, status = run({"scene.duration": 20.0, "simulation.cg_tolerance": tol,
                                      "bending.enabled": bending},
@@ -146,15 +154,18 @@ def main() -> None:
                     FIG11_TIMES)
 
     if not args.skip_convergence:
-        recs, conv = {}, []
-        for dt in STEPS:
-            wall, rec, status = first_20s(out, dt, False)
-            recs[dt] = rec
-            conv.append({"dt_s": dt, "wall_s": wall, "status": status,
-                         "first_contact_s": bn.metrics.first_contact_time(rec)})
-        for row, dt in zip(conv, STEPS, strict=True):
-            row.update(against(recs[dt], recs[STEPS[-1]]))
-            print(json.dumps(row), flush=True)
+        scene_tolerance = bn.load_scenario("capture").simulation.cg_tolerance
+        ref = first_20s(out, STEPS[-1], False, REFERENCE_TOLERANCE)
+        conv = []
+        for tol in (REFERENCE_TOLERANCE, scene_tolerance):
+            for dt in STEPS:
+                wall, rec, status = (ref if (dt, tol) == (STEPS[-1], REFERENCE_TOLERANCE)
+                                     else first_20s(out, dt, False, tol))
+                conv.append({"dt_s": dt, "cg_tolerance": tol, "wall_s": wall,
+                             "status": status,
+                             "first_contact_s": bn.metrics.first_contact_time(rec),
+                             **against(rec, ref[1])})
+                print(json.dumps(conv[-1]), flush=True)
         doc["convergence_20s"] = conv
 
     head_on = {}

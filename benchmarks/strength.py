@@ -11,8 +11,9 @@ Each run is recorded to OUT, measured (:func:`bulletnet.analysis.metrics.strengt
 and deleted. Writes OUT/strength.json (copy it to benchmarks/results/) and
 docs/figures/strength.png (``bulletnet plot``'s figure of the deployment without and with
 bending).
-Then the capture's first 9 s at steps from 1e-3 to 6.25e-5 s (``--convergence``: only these):
-how its least safety factor, set by snaps shorter than its step, depends on the step.
+Then the capture's first 9 s at steps from 1e-3 to 6.25e-5 s (``--convergence``: only these),
+at the CG tolerance :data:`CONVERGENCE_TOLERANCE`: how its least safety factor, set by snaps
+shorter than its step, depends on the step.
 Usage: python benchmarks/strength.py [OUT] [--only NAME ...] [--convergence]
 """
 
@@ -40,6 +41,10 @@ CONVERGENCE_STEPS = [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5]
 the unfolding's snaps), without and with bending: how the snaps' peaks depend on the step."""
 CONVERGENCE_DURATION = 9.0
 """[s]: past the capture's least factors (4-8 s), before its first contact (9.1-10.1 s)."""
+CONVERGENCE_TOLERANCE = 1e-6
+"""The CG tolerance [-] of the step convergence's runs: two orders below the scene's, so that
+the step's error is what changes (a tolerance relative to each step's right-hand side adds
+its error once a step: at finer steps the scene's would add more)."""
 
 
 def measure(path: Path, wall: float) -> dict:
@@ -52,8 +57,8 @@ def measure(path: Path, wall: float) -> dict:
 
 def step_convergence(out: Path) -> list[dict]:
     """The capture's least safety factor over its first :data:`CONVERGENCE_DURATION` at each
-    of :data:`CONVERGENCE_STEPS`, without and with bending: step [s], factor, where, when
-    [s], the tension [N], wall [s]."""
+    of :data:`CONVERGENCE_STEPS`, without and with bending, at :data:`CONVERGENCE_TOLERANCE`:
+    step [s], factor, where, when [s], the tension [N], wall [s]."""
     rows = []
     for bending in (False, True):
         for dt in CONVERGENCE_STEPS:
@@ -61,10 +66,12 @@ def step_convergence(out: Path) -> list[dict]:
             start = time.perf_counter()
             bn.run(bn.load_scenario("capture", {"bending.enabled": bending,
                                                 "scene.duration": CONVERGENCE_DURATION,
-                                                "simulation.dt": dt}), path, force=True)
+                                                "simulation.dt": dt,
+                                                "simulation.cg_tolerance":
+                                                    CONVERGENCE_TOLERANCE}), path, force=True)
             least = measure(path, time.perf_counter() - start)
             path.unlink()
-            rows.append({"bending": bending, "dt_s": dt,
+            rows.append({"bending": bending, "dt_s": dt, "cg_tolerance": CONVERGENCE_TOLERANCE,
                          "least_safety_factor": least["least_safety_factor"],
                          "element": least["element"], "time_s": least["time_s"],
                          "tension_N": least["tension_N"], "wall_s": least["wall_s"]})
