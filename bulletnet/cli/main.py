@@ -74,7 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
                      "bodies) or reference (scipy DOP853); default: the scene's")
     run.add_argument("--integrator", choices=INTEGRATORS,
                      help="time integrator of fast/bullet; default: the scene's")
-    run.add_argument("--dt", type=_positive, metavar="S", help="time step [s]")
+    run.add_argument("--dt", type=_positive, metavar="S",
+                     help="time step [s] (implicit Euler: a finer step wants a tighter "
+                          "--set simulation.cg_tolerance=..., relative to each step)")
     run.add_argument("--duration", type=_positive, metavar="S", help="simulated time [s]")
     run.add_argument("--record-rate", type=_positive, metavar="HZ",
                      help="frames recorded per simulated second [Hz]")

@@ -471,7 +471,9 @@ class Simulation:
     """Relative residual at which implicit_euler's conjugate-gradient solve stops [-]. On
     the 3 s deployment with bending at 3e-5 s, 1e-4, 1e-6 and 1e-8 give 0.649, 0.656 and
     0.662 mm (3.8, 11.6 and 19.1 iterations a step); without bending 1e-4 costs 15-70 % more
-    error than 1e-8 (docs/speed.md)."""
+    error than 1e-8 (docs/speed.md). Relative to each step's right-hand side, so its error is
+    added once a step: a finer step wants a tighter tolerance (the capture's first 20 s at
+    2.5e-4 s: first contact 83 ms early at 3e-4, 4 ms late at 1e-6; docs/capture.md)."""
     kernels: str = _f("grid", "-", "choice", ("grid", "pairs"))
     """Thread kernels of the fast engine: ``grid`` (stencils over the net's rows and columns,
     for an Eq. 1 net; any other model falls back to pairs) or ``pairs`` (one loop over the
