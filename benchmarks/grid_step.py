@@ -49,10 +49,10 @@ from bulletnet.solver.grid import ONE, U
 CALLS = 200_000
 """Calls of a pass in one timed loop [-]."""
 
-PASS_BYTES = {"stencils": 18, "node_pass": 12, "peaks": 5}
+PASS_BYTES = {"stencils": 18, "node_pass": 11, "peaks": 5}
 """Doubles each pass reads plus writes per thread (the stencils: both nodes' x and v, rest,
 k, c; T e written; the peaks: T e and the running maximum read, it written) or per node
-component (the node pass: base, bend, other, 1/m, four threads' T e, v and x read; v, x
+component (the node pass: base, other, 1/m, four threads' T e, v and x read; v, x
 written)."""
 
 
@@ -93,9 +93,9 @@ def _probe(g, level, calls):
 
 @nb.njit(error_model="numpy", _nrt=False)
 def _node_pass(g, dt, calls):
-    """``calls`` node passes of the free step (bending_scale 0, no increment kept)."""
+    """``calls`` node passes of the free step (no bending, no increment kept)."""
     for _ in range(calls):
-        G.node_pass(g, dt, 0.0, False)
+        G.node_pass(g, dt, None, False)
 
 
 @nb.njit(error_model="numpy", _nrt=False)
@@ -111,9 +111,9 @@ def _others(g, views, dt, calls):
 
 
 def working_set(g, peaks) -> int:
-    """Bytes of the rows a free step reads or writes: x, v, base, bend, other, 1/m, the
+    """Bytes of the rows a free step reads or writes: x, v, base, other, 1/m, the
     threads' T e and parameters, the running maxima."""
-    rows = (g.x, g.v, g.base, g.bend, g.other, g.inv_mass, g.th, g.tv, g.h_rest, g.h_k,
+    rows = (g.x, g.v, g.base, g.other, g.inv_mass, g.th, g.tv, g.h_rest, g.h_k,
             g.h_c, g.v_rest, g.v_k, g.v_c, peaks.rows)
     return sum(r.nbytes for r in rows)
 

@@ -406,8 +406,13 @@ def thread_forces(grid, views, dt):
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def _net_force(grid, a, i, ns, bending_scale):
     """Component a of node i's force [N]: base + bending_scale bend + its grid threads
-    (:func:`_neighbours`) + the other threads; zero on a padding column."""
-    start = grid.base[a, i] + bending_scale * grid.bend[a, i]
+    (:func:`_neighbours`) + the other threads; zero on a padding column. ``bending_scale``
+    None: no bending, bend not read (base + 0 bend is base: the same bits, a row less to read
+    a step)."""
+    if bending_scale is None:
+        start = grid.base[a, i]
+    else:
+        start = grid.base[a, i] + bending_scale * grid.bend[a, i]
     return _neighbours(start, grid.th, grid.tv, a, i, ns, 1.0) + grid.other[a, i]
 
 
@@ -654,7 +659,7 @@ def free_steps(implicit: bool):
             if implicit:
                 implicit_step(grid, views, dt, tol, iterations)
             else:
-                symplectic_step(grid, views, dt, 0.0, False)
+                symplectic_step(grid, views, dt, None, False)
             if peaks is not None:
                 track_peaks(grid, peaks)
 
