@@ -15,11 +15,13 @@ from bulletnet.analysis.capture_score import (
     SAMPLE_COUNT,
     OutcomeMonitor,
     Score,
+    all_receding,
     enclosed_fraction,
     fibonacci_sphere,
     interior_samples,
     largest_distance,
     mouth_opening,
+    receding,
 )
 from bulletnet.model.debris import Part, make_debris, rotation_matrix, rotation_quaternion
 from bulletnet.model.scenario import OutcomeRules
@@ -139,10 +141,10 @@ def test_largest_distance_is_scipys_pdist_bit_for_bit():
 
 def judge(frames, **rules) -> OutcomeMonitor:
     """An outcome monitor fed synthetic frames (t [s], enclosed, mouth, contacts, moving
-    away); the run completed."""
+    away: the net's centre of mass and every node alike); the run completed."""
     monitor = OutcomeMonitor(OutcomeRules(enabled=True, **rules), geometry=None)
     for t, enclosed, mouth, contacts, away in frames:
-        monitor.update(t, Score(enclosed, mouth, enclosed * (1 - mouth)), contacts, away)
+        monitor.update(t, Score(enclosed, mouth, enclosed * (1 - mouth)), contacts, away, away)
     monitor.finish(completed=True)
     return monitor
 
@@ -177,9 +179,10 @@ def test_missed_without_contact_by_the_miss_time_or_the_end():
     assert (monitor.outcome, monitor.time) == ("missed", 3.0)
     assert monitor.reason == "no contact by outcome.miss_time, 3 s"
     assert (judge(frames).outcome, judge(frames).time) == ("missed", 40.0)
-    assert judge(frames).reason == "no contact by the end, the net moving away from the debris"
+    assert judge(frames).reason == ("no contact by the end, every net node moving away from "
+                                    "the debris")
     interrupted = OutcomeMonitor(OutcomeRules(), geometry=None)
-    interrupted.update(1.0, Score(0.0, 0.9, 0.0), 0, True)
+    interrupted.update(1.0, Score(0.0, 0.9, 0.0), 0, True, True)
     interrupted.finish(completed=False)  # cut short: not a miss
     assert (interrupted.outcome, interrupted.time) == ("undecided", -1.0)
     assert interrupted.reason == "the run stopped at 1.00 s, before its end"
@@ -191,11 +194,28 @@ def test_a_run_over_before_contact_was_possible_is_undecided_not_missed():
     approaching = [(t, 0.0, 0.9, 0, False) for t in TIMES if t <= 2.0]
     monitor = judge(approaching)
     assert (monitor.outcome, monitor.time, monitor.reason) == (
-        "undecided", -1.0, "no contact yet: the run ended at 2.00 s with the net still "
+        "undecided", -1.0, "no contact yet: the run ended at 2.00 s with net nodes still "
         "approaching the debris")
     early = judge([(t, 0.0, 0.9, 0, True) for t in TIMES if t <= 2.0], miss_time=30.0)
     assert (early.outcome, early.reason) == (
         "undecided", "no contact yet: the run ended at 2.00 s, before outcome.miss_time, 30 s")
+
+
+def test_a_net_whose_centre_of_mass_has_passed_the_debris_can_still_reach_it():
+    # The paper's capture at 8 s, in miniature: the corner masses (0.5 kg each, 2.0 kg of the
+    # net's 2.9) fly ahead, past the debris' centre at z = 10 m, and carry the centre of mass
+    # with them, while the lighter bag behind them (0.9 kg) still approaches (it touches the
+    # CSM at 10.1 s). By the centre of mass the net recedes; by its nodes it does not, and a run
+    # stopped here is undecided, not missed. Once every node has passed, it is a miss.
+    position = np.array([[2.0, 2.0, 11.0], [-2.0, 2.0, 11.0], [2.0, -2.0, 11.0],
+                         [-2.0, -2.0, 11.0], [0.0, 0.0, 8.0]])  # corners, then the bag [m]
+    velocity = np.array([[0.0, 0.0, 1.4]] * 4 + [[0.0, 0.0, 1.8]])  # [m/s]
+    mass = np.array([0.5, 0.5, 0.5, 0.5, 0.3])  # [kg]
+    centre, still = np.array([0.0, 0.0, 10.0]), np.zeros(3)
+    assert receding(position, velocity, mass, centre, still)  # the centre of mass: past
+    assert not all_receding(position, velocity, centre, still)  # the bag: approaching
+    position[4, 2] = 10.5  # the bag past the debris' centre too
+    assert all_receding(position, velocity, centre, still)
 
 
 def test_undecided_while_touching_an_open_net():

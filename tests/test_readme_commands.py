@@ -120,7 +120,7 @@ def test_readme_commands_run_in_order_in_a_fresh_folder(tmp_path):
     # the runs are shortened, so the captures end before the net reaches the debris: that
     # is undecided, with the reason, not a miss
     capture = next(t for c, t in outputs.items() if c.startswith("bulletnet run capture "))
-    assert "outcome: undecided (no contact yet: the run ended at 0.05 s with the net still " \
+    assert "outcome: undecided (no contact yet: the run ended at 0.05 s with net nodes still " \
            "approaching the debris)" in capture
     # the report prints the outcome's probabilities, not only where it wrote them
     report = next(t for c, t in outputs.items() if "--report" in c)

@@ -221,6 +221,18 @@ def receding(position: np.ndarray, velocity: np.ndarray, mass: np.ndarray,
     return float(separation @ (mass @ velocity / total - debris_velocity)) > 0.0
 
 
+def all_receding(position: np.ndarray, velocity: np.ndarray, debris_center: np.ndarray,
+                 debris_velocity: np.ndarray) -> bool:
+    """Whether every node moves away from the debris' centre of mass (each one's relative
+    velocity along its own separation > 0): the nodes' positions (K, 3) [m] and velocities
+    (K, 3) [m/s], the debris' centre of mass (3,) [m] and its velocity (3,) [m/s]. The test of
+    a miss: the centre of mass of a net in flight runs ahead of the bag that first meets the
+    debris (the corner masses lead), so it passes the debris' centre while nodes still
+    approach it."""
+    radial = np.einsum("ij,ij->i", position - debris_center, velocity - debris_velocity)
+    return bool((radial > 0.0).all())
+
+
 class OutcomeMonitor:
     """Judges a capture frame by frame (as a termination condition would), from what a
     frame holds: node positions and velocities, the debris' pose and velocity, and the count
@@ -231,8 +243,9 @@ class OutcomeMonitor:
     - ``escaped``: after a contact, no contact for ``quiet_time`` with the net's centre of
       mass moving away from the debris';
     - ``missed``: no contact by ``miss_time``; with ``miss_time`` 0, by the end of a
-      completed run whose net moves away from the debris at its last frame (a run that ends
-      while the net still approaches it, before contact was possible, stays undecided);
+      completed run whose every net node moves away from the debris at its last frame
+      (:func:`all_receding`; a run that ends while any node still approaches it, before
+      contact was possible, stays undecided);
     - ``undecided``: none of these by the end.
 
     The first outcome decided is final; :attr:`time` is when it was decided (the frame that
@@ -254,7 +267,7 @@ class OutcomeMonitor:
         self._held_from: float | None = None
         self._last_contact: float | None = None
         self._last_time = 0.0
-        self._last_away = False
+        self._last_past = False
 
     @property
     def decided(self) -> bool:
@@ -279,16 +292,20 @@ class OutcomeMonitor:
         s = score(positions, origin, quaternion, g,
                   self.rules.mouth_opening if judge_only else math.inf)
         centre = origin + rotation_matrix(quaternion) @ g.center_of_mass
-        away = receding(positions[:g.net_nodes], velocities[:g.net_nodes], g.mass, centre,
-                        debris_velocity)
-        self.update(t, s, contacts, away)
+        net = slice(0, g.net_nodes)
+        away = receding(positions[net], velocities[net], g.mass, centre, debris_velocity)
+        past = (self._last_contact is None and contacts == 0
+                and all_receding(positions[net], velocities[net], centre, debris_velocity))
+        self.update(t, s, contacts, away, past)
         return None if judge_only else s
 
-    def update(self, t: float, s: Score, contacts: int, away: bool) -> None:
+    def update(self, t: float, s: Score, contacts: int, away: bool, past: bool) -> None:
         """Judge the frame at time ``t`` [s] from its score, the nodes that touched the debris
-        since the last frame [-] and whether the net moves away from it (:func:`receding`)."""
+        since the last frame [-], whether the net's centre of mass moves away from the debris'
+        (:func:`receding`: an escape) and whether every one of its nodes does
+        (:func:`all_receding`: a miss; needed only while nothing has touched)."""
         r = self.rules
-        self._last_time, self._last_away = t, away
+        self._last_time, self._last_past = t, past
         if self.decided:
             return
         if contacts > 0:
@@ -310,7 +327,7 @@ class OutcomeMonitor:
     def finish(self, completed: bool) -> None:
         """The run ended (``completed``: it reached its end, or stopped once decided): a
         completed run that never touched the debris missed it if its rules judge misses by
-        the end (``miss_time`` 0) and the net was moving away from the debris; otherwise an
+        the end (``miss_time`` 0) and every net node was moving away from the debris; otherwise an
         undecided outcome gets its :attr:`reason`."""
         if self.decided:
             return
@@ -321,7 +338,7 @@ class OutcomeMonitor:
             key = "touched"
         elif miss > 0:
             key = "before miss_time"
-        elif not self._last_away:
+        elif not self._last_past:
             key = "approaching"
         else:
             self._decide("missed", t, t, "missed by the end")
@@ -333,12 +350,12 @@ REASONS = {
     "captured": "enclosed and closed since {since:.2f} s",
     "escaped": "no contact since {since:.2f} s",
     "missed by miss_time": "no contact by outcome.miss_time, {miss:g} s",
-    "missed by the end": "no contact by the end, the net moving away from the debris",
+    "missed by the end": "no contact by the end, every net node moving away from the debris",
     "stopped": "the run stopped at {end:.2f} s, before its end",
     "touched": "touched, but neither captured nor escaped by the end, {end:.2f} s",
     "before miss_time": "no contact yet: the run ended at {end:.2f} s, before "
                         "outcome.miss_time, {miss:g} s",
-    "approaching": "no contact yet: the run ended at {end:.2f} s with the net still "
+    "approaching": "no contact yet: the run ended at {end:.2f} s with net nodes still "
                    "approaching the debris",
 }
 """The reasons an :class:`OutcomeMonitor` gives (its :attr:`~OutcomeMonitor.reason`), by
