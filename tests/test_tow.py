@@ -382,6 +382,13 @@ def test_a_failed_tether_ends_the_burn(integrator):
     momentum = (np.array([3.0, 1.0])[:, None] * run.state.velocity).sum(axis=0)
     assert momentum[0] == pytest.approx(10.0 * t_b, abs=10.0 * (1 / 240 + 1e-4))
     np.testing.assert_allclose(momentum[1:], 0.0, atol=1e-12)
+    # the burn's reported impulse is what it delivered (momentum from rest: the external
+    # force's integral), not the planned burn's to the end (10 N s): it ends with the tether
+    assert control.profile.end == pytest.approx(t_b, abs=2e-3)
+    attrs = {}
+    control.finish(run, "completed", attrs)  # as the recording keeps them
+    assert attrs["thrust_impulse_Ns"] == pytest.approx(momentum[0], rel=1e-9)
+    assert attrs["thrust_cut_s"] == control.profile.end
 
 
 @pytest.mark.parametrize("integrator", ["symplectic_euler", "implicit_euler"])

@@ -266,18 +266,24 @@ def capture_outcome(rec: Recording) -> tuple[np.ndarray, OutcomeMonitor]:
 
 def thrust_profile(rec: Recording):
     """The recorded run's burn (:class:`~bulletnet.model.thrust.ThrustProfile`), from its
-    scene's ``[thrust]``, its start ``thrust_start_s`` [s] and the axial mode it recorded."""
+    scene's ``[thrust]``, its start ``thrust_start_s`` [s], the axial mode it recorded and
+    when a failed tether cut it short (``thrust_cut_s`` [s], -1: never)."""
     from ..model.thrust import ThrustProfile
 
-    return ThrustProfile(recorded_scene(rec).thrust, float(rec.attrs["thrust_start_s"]),
-                         float(rec.attrs["thrust_axial_frequency_rad_s"]),
-                         float(rec.attrs["thrust_damping_ratio"]))
+    profile = ThrustProfile(recorded_scene(rec).thrust, float(rec.attrs["thrust_start_s"]),
+                            float(rec.attrs["thrust_axial_frequency_rad_s"]),
+                            float(rec.attrs["thrust_damping_ratio"]))
+    cut = float(rec.attrs.get("thrust_cut_s", -1.0))
+    if cut >= 0.0:
+        profile.end = cut
+    return profile
 
 
 def tow_series(rec: Recording) -> dict:
     """The tow's frames, from the burn's start (``thrust_start_s``) on, as the run's tow judge
     saw them (:class:`~bulletnet.sim.tow.TowOutcome`): ``time`` [s], ``thrust`` [N] (the
-    profile's mean over the interval to the next frame), ``tension`` [N] (the tether's at the
+    profile's mean over the interval to the next frame; none after a failed tether cut the
+    burn), ``tension`` [N] (the tether's at the
     chaser, its last thread), ``distance`` [m] (chaser to the debris' centre of mass),
     ``enclosed`` [-] (the capture score's enclosed fraction) and ``rate`` [rad/s] (the
     debris' angular speed), each shape (F,); empty if the burn never started."""

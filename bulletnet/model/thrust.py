@@ -98,10 +98,13 @@ class ThrustProfile:
         """Rise of each step [s] (0: a step)."""
         self.force = rules.force
         """Full thrust [N]."""
+        self.end = math.inf
+        """When the burn was cut short [s] (a failed tether ends it): no thrust from then on;
+        inf: never."""
 
     def impulse(self, t: float) -> float:
-        """The thrust's integral from the start to ``t`` [N s]."""
-        s = np.maximum(t - self.times, 0.0)
+        """The thrust's integral from the start to ``t`` [N s] (to :attr:`end` at most)."""
+        s = np.maximum(min(t, self.end) - self.times, 0.0)
         if self.rise > 0:
             s = np.where(s < self.rise, s * s / (2.0 * self.rise), s - 0.5 * self.rise)
         return self.force * float(self.amplitudes @ s)

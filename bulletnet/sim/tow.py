@@ -17,6 +17,8 @@ the run loop.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..analysis.capture_score import OutcomeMonitor, ScoreGeometry, score
@@ -94,11 +96,13 @@ class ThrustControl(Observer):
             self.profile = ThrustProfile(self.rules, start, self.mode.omega, self.mode.zeta)
 
     def _apply(self, engine) -> None:
-        if self.profile is not None:
-            cut = self.tether is not None and bool((engine.breakage.failure_time[
-                self.tether] >= 0).any())
-            engine.external[self.chaser] = (0.0 if cut else  # a failed tether ends the burn
-                                            self.profile.mean(*engine.span) * self.direction)
+        p = self.profile
+        if p is None:
+            return
+        if p.end == math.inf and self.tether is not None and bool(
+                (engine.breakage.failure_time[self.tether] >= 0).any()):
+            p.end = engine.span[0]  # a failed tether ends the burn, from these steps on
+        engine.external[self.chaser] = p.mean(*engine.span) * self.direction
 
     def frame(self, run: Run) -> bool:
         self._begin()
@@ -112,6 +116,7 @@ class ThrustControl(Observer):
             thrust_dt_s=run.engine.dt if self.switched else 0.0,
             thrust_start_s=-1.0 if p is None else float(p.times[0]),
             thrust_impulse_Ns=0.0 if p is None else p.impulse(run.state.time),
+            thrust_cut_s=-1.0 if p is None or p.end == math.inf else float(p.end),
             thrust_axial_frequency_rad_s=m.omega, thrust_damping_ratio=m.zeta,
             thrust_towed_mass_kg=m.towed_mass, thrust_chaser_mass_kg=m.chaser_mass,
             thrust_tether_stiffness_N_m=m.stiffness)
