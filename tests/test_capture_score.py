@@ -5,6 +5,7 @@ decided, and judged again from their recordings alone."""
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import h5py
 import numpy as np
@@ -23,6 +24,7 @@ from bulletnet.analysis.capture_score import (
     mouth_opening,
     receding,
 )
+from bulletnet.analysis.metrics import LEAVE_QUIET_S, leave_time
 from bulletnet.model.debris import Part, make_debris, rotation_matrix, rotation_quaternion
 from bulletnet.model.scenario import OutcomeRules
 from bulletnet.model.topology import perimeter
@@ -216,6 +218,21 @@ def test_a_net_whose_centre_of_mass_has_passed_the_debris_can_still_reach_it():
     assert not all_receding(position, velocity, centre, still)  # the bag: approaching
     position[4, 2] = 10.5  # the bag past the debris' centre too
     assert all_receding(position, velocity, centre, still)
+
+
+def test_an_escape_stopped_when_decided_has_left_the_debris():
+    # The escape's quiet time and the leave time are the same 5 s (metrics.LEAVE_QUIET_S):
+    # a run stopped at the frame that decides the escape ends 5 s after its last contact, and
+    # frame times of 0.2 s (k / 5 Hz) put 8.2 - 3.2 at 4.999999999999999 s, not 5: to the
+    # frame times' round-off, as the outcome judges it, the net has left at 3.2 s.
+    times = np.arange(42) / 5.0  # to 8.2 s
+    count = np.where(times <= 3.2 + 1e-12, 4, 0)
+    frames = [(t, 0.1, 0.9, c, True) for t, c in zip(times, count, strict=True)]
+    assert times[-1] - 3.2 < LEAVE_QUIET_S and judge(frames).outcome == "escaped"
+    rec = SimpleNamespace(path="run.h5", time=times, contacts={"count": count})
+    assert leave_time(rec) == 3.2
+    assert leave_time(SimpleNamespace(path="run.h5", time=times[:-1],
+                                      contacts={"count": count[:-1]})) is None  # 4.8 s
 
 
 def test_undecided_while_touching_an_open_net():

@@ -65,6 +65,7 @@ from ..model.net import ELEMENT_NAMES, ElementKind, thread_kinds
 from ..model.topology import center_nodes, net_corners, perimeter
 from ..recording.reader import Recording
 from .capture_score import (
+    TIME_TOLERANCE,
     OutcomeMonitor,
     ScoreGeometry,
     interior_samples,
@@ -213,9 +214,11 @@ def nodes_in_contact(rec: Recording) -> np.ndarray:
 
 def leave_time(rec: Recording) -> float | None:
     """When the net left the debris [s]: the end of the last interval with contact, if at
-    least :data:`LEAVE_QUIET_S` without contact follow to the end of the run; else None."""
+    least :data:`LEAVE_QUIET_S` without contact follow to the end of the run (to the frame
+    times' round-off, as the outcome's quiet time: an escape decided and stopped there has
+    left); else None."""
     hit = np.nonzero(nodes_in_contact(rec) > 0)[0]
-    if not hit.size or rec.time[-1] - rec.time[hit[-1]] < LEAVE_QUIET_S:
+    if not hit.size or rec.time[-1] - rec.time[hit[-1]] < LEAVE_QUIET_S - TIME_TOLERANCE:
         return None
     return float(rec.time[hit[-1]])
 
