@@ -175,6 +175,20 @@ def test_escaped_after_the_quiet_time_once_the_net_moves_away():
     assert judge(moving_away).time == 10.0
 
 
+def test_no_escape_while_the_debris_floats_inside_a_closed_net():
+    # one contact at 30 s, enclosed (E = 1) in a closed net (M = 0.1) from then on, the debris
+    # floating free inside the bag and the net's centre of mass moving away from its: the
+    # quiet time (5 s) passes inside the hold (10 s), which decides it: captured at 40 s
+    def frames(mouth):
+        return [(t, 1.0 if t >= 30.0 else 0.0, mouth(t), 5 if abs(t - 30.0) < 1e-9 else 0,
+                 True) for t in TIMES]
+    held = judge(frames(lambda t: 0.1))
+    assert (held.outcome, held.time, held.since) == ("captured", 40.0, 30.0)
+    # the mouth open again from 33 s: no hold, and the quiet time decides an escape
+    opened = judge(frames(lambda t: 0.1 if t < 33.0 else 0.6))
+    assert (opened.outcome, opened.time, opened.since) == ("escaped", 35.0, 30.0)
+
+
 def test_missed_without_contact_by_the_miss_time_or_the_end():
     frames = [(t, 0.0, 0.9, 0, True) for t in TIMES]
     monitor = judge(frames, miss_time=3.0)

@@ -241,7 +241,8 @@ class OutcomeMonitor:
     - ``captured``: E >= ``enclosed_fraction`` and M <= ``mouth_opening`` on every frame
       over ``hold_time``;
     - ``escaped``: after a contact, no contact for ``quiet_time`` with the net's centre of
-      mass moving away from the debris';
+      mass moving away from the debris', the debris not enclosed in a closed net (the
+      captured conditions do not hold on that frame);
     - ``missed``: no contact by ``miss_time``; with ``miss_time`` 0, by the end of a
       completed run whose every net node moves away from the debris at its last frame
       (:func:`all_receding`; a run that ends while any node still approaches it, before
@@ -319,7 +320,10 @@ class OutcomeMonitor:
         else:
             self._held_from = None
         if self._last_contact is not None:
-            if t - self._last_contact >= r.quiet_time - TIME_TOLERANCE and away:
+            # not while enclosed and closed: a debris floating free inside a closed bag has
+            # not escaped (the hold goes on, and decides it captured if it lasts)
+            if (self._held_from is None and away
+                    and t - self._last_contact >= r.quiet_time - TIME_TOLERANCE):
                 self._decide("escaped", t, self._last_contact, "escaped")
         elif 0 < r.miss_time <= t + TIME_TOLERANCE:
             self._decide("missed", t, t, "missed by miss_time")
