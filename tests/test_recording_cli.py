@@ -163,6 +163,9 @@ def test_a_misspelt_key_in_a_scene_file_gets_the_closest_key(tmp_path):
     (["params", "capture", "--set", "debris.asset='pyproject.toml'"], "[[parts]]"),
     (["params", "capture", "--set", "debris.asset='assets/meshes/apollo_csm.obj'"],
      "needs debris.mass"),
+    (["run", "deployment", "--out", "tests", "--force"], "tests: is a folder"),
+    (["metrics", "tests"], "tests: a folder, not a recording"),
+    (["study"], "give a STUDY.toml to run, or --report DIR\n"),
 ])
 def test_bad_input_one_line_exit_2(args, needle):
     import pathlib
@@ -225,6 +228,38 @@ def test_rmse_of_a_rigid_shift(tmp_path):
     assert r["rmse_pos_max"] == pytest.approx(0.005, rel=1e-9)
     assert r["rmse_pos_avg"] == pytest.approx(0.005, rel=1e-9)
     assert r["rmse_vel_max"] == 0.0
+
+
+def test_rmse_needs_more_than_the_start_in_common(tmp_path):
+    # two recordings that share only t = 0 (their identical initial state) compare nothing
+    rec = bn.open_recording(bn.run(small_scene(**{"scene.duration": 0.02}),
+                                   tmp_path / "s.h5").path)
+    later = bn.Recording(**{**rec.__dict__, "time": np.where(rec.time > 0, rec.time + 1e-3, 0)})
+    with pytest.raises(bn.RecordingError, match="share only the sample at 0 s"):
+        bn.metrics.rmse(rec, later)
+
+
+def test_a_beam_gets_its_tip_not_the_net_measures(tmp_path):
+    # Reference: Euler-Bernoulli, tip deflection P L^3 / (3 E I) + w L^4 / (8 E I) (within
+    # the 1 % of tests/test_bending.py; the two-node model lumps half the weight at the tip)
+    # and the lumped model's own, (P + w L / 2) L^3 / (3 E I), to the residual oscillation.
+    path = tmp_path / "beam.h5"
+    bn.run(bn.load_scenario("cantilever"), path)
+    beam = bn.metrics.summary(bn.open_recording(path))["beam"]
+    tip = beam["tip_displacement_m"][-1][2]
+    e, length, r = 69e9, 0.5, 0.01
+    inertia, w = math.pi * r**4 / 4, 2700 * math.pi * r**2 * 9.81
+    theory = 262 * length**3 / (3 * e * inertia) + w * length**4 / (8 * e * inertia)
+    assert beam["euler_bernoulli_m"][2] == pytest.approx(-theory, rel=1e-12)
+    assert tip == pytest.approx(-theory, rel=0.01)
+    assert tip == pytest.approx(beam["two_node_model_m"][2], rel=1e-4)
+    proc = cli("metrics", str(path))
+    assert proc.returncode == 0 and "Euler-Bernoulli" in proc.stdout, proc.stderr
+    for args in (["plot", str(path), "--out", str(tmp_path / "fig")],
+                 ["view", str(path), "--html", str(tmp_path / "r.html")]):
+        proc = cli(*args)
+        assert proc.returncode == 2 and "a beam (the cantilever), not a net" in proc.stderr
+        assert proc.stderr.count("\n") == 1
 
 
 def test_plot_writes_the_figures(tmp_path):

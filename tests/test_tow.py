@@ -348,7 +348,7 @@ def test_a_tow_whose_chaser_leaves_the_debris_behind_has_slipped():
     for monitor in (lost, kept):
         for frame in frames:
             monitor.update(*frame)
-        monitor.finish(True)
+        monitor.finish(True, 5.0)
     assert lost.outcome == "slipped" and lost.time == 5.0 and "75.00 m" in lost.reason
     assert kept.outcome == "towed"
 

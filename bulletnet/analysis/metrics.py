@@ -116,12 +116,16 @@ def deployed_time(rec: Recording, fraction: float = 0.9) -> float | None:
 
 
 def summary(rec: Recording) -> dict:
-    """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys;
+    """Time series of the aggregate measures, as lists (JSON-ready) with units in the keys
+    (of a beam, the cantilever: its tip under ``beam``, :func:`beam_summary`, for the net's);
     the safety margins under ``strength`` (:func:`strength_summary`, and what failed under
     its ``breakage``, :func:`breakage`: None without ``strength.breakage``); with the capture
     measures under ``capture`` for recordings with debris and contact, the burn's and the
     tow's recorded attributes (``thrust_*``, ``tow_*``) under ``tow``, and the reel at the
     chaser under ``reel`` (:func:`reel_summary`) for recordings with one."""
+    if rec.nodes_per_side == 0:  # a beam (the cantilever), not a net: no net measures
+        return {"time_s": rec.time.tolist(), "status": rec.status, "beam": beam_summary(rec),
+                "strength": strength_summary(rec) | {"breakage": breakage(rec)}}
     doc = {
         "time_s": rec.time.tolist(),
         "mouth_area_m2": mouth_area(rec).tolist(),
@@ -140,6 +144,25 @@ def summary(rec: Recording) -> dict:
     if rec.tether is not None:
         doc["reel"] = reel_summary(rec)
     return doc
+
+
+def beam_summary(rec: Recording) -> dict:
+    """The cantilever's tip (its last node; Fig. 2): ``tip_displacement_m``, its displacement
+    from the first frame [m], shape (T, 3); ``euler_bernoulli_m``, the static tip deflection of
+    Euler-Bernoulli beam theory under the recorded tip load F and own weight q = rho A g per
+    length, F L^3 / (3 E I) + q L^4 / (8 E I) [m], shape (3,) (transverse components: the
+    beam lies along x); and ``two_node_model_m``, the two-node model's own, (F + q L / 2)
+    L^3 / (3 E I) [m] (half the weight lumped at the tip: docs/model.md)."""
+    s = recorded_scene(rec)
+    b, material = s.beam, s.materials.net
+    area, inertia = np.pi * b.radius**2, np.pi * b.radius**4 / 4.0
+    stiffness = material.young_modulus * inertia  # E I [N m^2]
+    load = np.array(b.tip_load, dtype=float) * [0.0, 1.0, 1.0]
+    weight = material.density * area * np.array(s.scene.gravity) * [0.0, 1.0, 1.0]
+    theory = load * b.length**3 / (3 * stiffness) + weight * b.length**4 / (8 * stiffness)
+    lumped = (load + weight * b.length / 2) * b.length**3 / (3 * stiffness)
+    return {"tip_displacement_m": (rec.position[:, -1] - rec.position[0, -1]).tolist(),
+            "euler_bernoulli_m": theory.tolist(), "two_node_model_m": lumped.tolist()}
 
 
 def common_times(a: Recording, b: Recording, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
@@ -163,8 +186,11 @@ def rmse(a: Recording, b: Recording) -> dict:
             f"{a.path} has {a.position.shape[1]} nodes, {b.path} has {b.position.shape[1]}: "
             "not the same net")
     ia, ib = common_times(a, b)
-    if ia.size == 0:
-        raise RecordingError(f"{a.path} and {b.path} share no sample time")
+    if ia.size < 2:
+        raise RecordingError(
+            f"{a.path} and {b.path} share " + ("no sample time" if ia.size == 0 else
+                                                f"only the sample at {a.time[ia[0]]:g} s")
+            + ": nothing to compare (record both at one rate: --record-rate)")
     dx = np.sum((a.position[ia] - b.position[ib]) ** 2, axis=-1)  # (T, N)
     dv = np.sum((a.velocity[ia] - b.velocity[ib]) ** 2, axis=-1)
     pos, vel = np.sqrt(dx.mean(axis=0)), np.sqrt(dv.mean(axis=0))
@@ -322,7 +348,7 @@ def tow_outcome(rec: Recording, series: dict | None = None) -> TowMonitor:
     for k in range(series["time"].size):
         monitor.update(*(float(series[key][k]) for key in
                          ("time", "tension", "distance", "enclosed", "rate")))
-    monitor.finish(rec.status == "completed")
+    monitor.finish(rec.status == "completed", float(rec.time[-1]))
     return monitor
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..common.errors import BulletnetError
+from ..common.errors import BulletnetError, RecordingError
 from ..model.net import ELEMENT_NAMES, ElementKind, corner_threads
 from ..recording.reader import Recording
 from . import metrics
@@ -55,10 +55,18 @@ def default_times(rec: Recording, count: int = 7) -> list[float]:
 def plot_recordings(a: Recording, b: Recording | None, out_dir: str | Path,
                     times: list[float] | None = None) -> list[Path]:
     """Write the figures for ``a`` (and ``b`` overlaid) into ``out_dir``; return the paths."""
-    plt = _pyplot()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     recs = [r for r in (a, b) if r is not None]
+    for rec in recs:
+        rec.require_net("net figures")
+    if b is not None and (a.debris is None) != (b.debris is None):
+        raise RecordingError(f"{a.path} and {b.path}: one has debris and the other not; "
+                             "plot overlays two runs of one kind")
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise RecordingError(f"{out}: exists and is not a folder; --out names the folder of "
+                             "the figures")
+    plt = _pyplot()
+    out.mkdir(parents=True, exist_ok=True)
     styles = ["-", "--"]
     written = []
 

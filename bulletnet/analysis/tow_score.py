@@ -109,15 +109,15 @@ class TowMonitor:
         self.outcome, self.time = outcome, t
         self.reason = REASONS[case or outcome].format(value=value)
 
-    def finish(self, completed: bool) -> None:
-        """The run ended (``completed``: it reached its end): an undecided tow that started
-        is ``towed`` if the run completed."""
+    def finish(self, completed: bool, end: float) -> None:
+        """The run ended at ``end`` [s] (``completed``: it reached its end): an undecided tow
+        that started is ``towed`` if the run completed."""
         if self.outcome != "undecided":
             return
         key = "not started" if self.frames == 0 else "towed" if completed else "stopped"
         if key == "towed":
             self.outcome, self.time = "towed", self._last_time
-        self.reason = REASONS[key].format(since=self.start, end=self._last_time)
+        self.reason = REASONS[key].format(since=self.start, end=end)
 
     def attributes(self) -> dict:
         """The outcome and measures as a recording's attributes (docs/recordings.md)."""

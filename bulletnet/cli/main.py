@@ -17,7 +17,7 @@ import time
 from ..common import interrupt
 from ..common.errors import BulletnetError, ScenarioError
 
-SI_HELP = "all quantities in SI units; see `bulletnet params SCENE`"
+SI_HELP = "all quantities in SI units, angles in degrees; see `bulletnet params SCENE`"
 
 
 def kernel_group(scene) -> str:
@@ -56,7 +56,7 @@ def _add_scene(parser: argparse.ArgumentParser, bending: str = "bending on/off")
                         help=f"{bending}; default: the scene's")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scene key, e.g. --set net.nodes_per_side=6 (values in "
-                             "SI units, TOML syntax; repeatable)")
+                             "SI units, angles in degrees, TOML syntax; repeatable)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -226,8 +226,8 @@ def _add_set_every_run(parser: argparse.ArgumentParser, runs: str) -> None:
     """--set of a command that runs a file's plan: scene keys on top of the file's [set]."""
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help=f"set a scene key in {runs}, on top of the file's [set], e.g. "
-                             "--set simulation.dt=1e-3 (values in SI units, TOML syntax; "
-                             "repeatable; a key the file varies is an error)")
+                             "--set simulation.dt=1e-3 (values in SI units, angles in degrees, "
+                             "TOML syntax; repeatable; a key the file varies is an error)")
 
 
 def _set_overrides(args) -> dict:
@@ -303,7 +303,8 @@ def cmd_study(args) -> int:
     from ..studies.study import load_study, run_study
 
     if (args.study is None) == (args.report is None):
-        raise ScenarioError("give a STUDY.toml to run, or --report DIR, not both")
+        raise ScenarioError("give a STUDY.toml to run, or --report DIR" + (
+            ", not both" if args.study is not None else ""))
     if args.report is not None and args.set:
         raise ScenarioError("--set applies to a study to run, not to --report")
     if args.bins < 1:
@@ -368,7 +369,8 @@ def cmd_optimize(args) -> int:
     from ..studies.optimize_report import report_optimisation, summary_text
 
     if (args.file is None) == (args.report is None):
-        raise ScenarioError("give a FILE.toml to run, or --report DIR, not both")
+        raise ScenarioError("give a FILE.toml to run, or --report DIR" + (
+            ", not both" if args.file is not None else ""))
     if args.confirm < 0 or (args.confirm and args.report is None):
         raise ScenarioError(f"--confirm {args.confirm}: an integer >= 0, with --report DIR")
     if args.report is not None and args.set:
@@ -767,6 +769,9 @@ def cmd_metrics(args) -> int:
         return 0
     print(f"{rec.path}: {rec.status}, {rec.time.size} frames")
     print("\n".join(strength_text(doc["strength"])))
+    if "beam" in doc:
+        _print_beam(doc, args.every)
+        return 0
     capture = doc.get("capture")
     if capture:
         def when(t):
@@ -808,6 +813,24 @@ def cmd_metrics(args) -> int:
                   f"{doc['net_height_m'][k]:15.5g}{extra}")
             next_t = t + args.every
     return 0
+
+
+def _print_beam(doc: dict, every: float) -> None:
+    """The cantilever's tip deflection against beam theory, then over time."""
+    beam = doc["beam"]
+    tip, theory, lumped = beam["tip_displacement_m"], beam["euler_bernoulli_m"], \
+        beam["two_node_model_m"]
+
+    def mm(v):
+        return " ".join(f"{1e3 * c:.4f}" for c in v)
+    print(f"tip displacement at the end [mm]: {mm(tip[-1])}; static, Euler-Bernoulli: "
+          f"{mm(theory)}; the two-node model's: {mm(lumped)}")
+    print("   time [s]  tip x [mm]  tip y [mm]  tip z [mm]")
+    next_t = 0.0
+    for k, t in enumerate(doc["time_s"]):
+        if t + 1e-9 >= next_t or k == len(doc["time_s"]) - 1:
+            print(f"{t:11.3f}" + "".join(f" {1e3 * c:11.4f}" for c in tip[k]))
+            next_t = t + every
 
 
 def _where(margin: dict) -> str:
@@ -863,9 +886,12 @@ def breakage_text(doc: dict) -> list[str]:
 
 def _print_tow(tow: dict) -> None:
     """The burn and the tow's outcome and measures, from a recording's attributes."""
-    print(f"burn: from {tow['thrust_start_s']:.2f} s, impulse {tow['thrust_impulse_Ns']:.6g} "
-          f"N s; tether axial mode {tow['thrust_axial_frequency_rad_s']:.4g} rad/s (damping "
-          f"ratio {tow['thrust_damping_ratio']:.3g}, towed mass "
+    burn = ("never started" if tow["thrust_start_s"] < 0 else
+            f"from {tow['thrust_start_s']:.2f} s, impulse {tow['thrust_impulse_Ns']:.6g} N s"
+            + (f" (cut at {tow['thrust_cut_s']:.2f} s: the tether failed)"
+               if tow.get("thrust_cut_s", -1.0) >= 0 else ""))
+    print(f"burn: {burn}; tether axial mode {tow['thrust_axial_frequency_rad_s']:.4g} rad/s "
+          f"(damping ratio {tow['thrust_damping_ratio']:.3g}, towed mass "
           f"{tow['thrust_towed_mass_kg']:.6g} kg)")
     if tow.get("thrust_integrator"):
         print(f"from the burn on: {tow['thrust_integrator']} at steps of "
@@ -873,6 +899,8 @@ def _print_tow(tow: dict) -> None:
     if "tow_outcome" in tow:
         print("tow: " + _outcome_text(tow["tow_outcome"], tow["tow_outcome_time_s"],
                                       tow["tow_outcome_reason"]))
+        if tow["tow_start_s"] < 0:  # no frame judged: no measures
+            return
         print(f"tether tension at the chaser: peak {tow['tow_peak_tension_N']:.4g} N, mean "
               f"{tow['tow_mean_tension_N']:.4g} N; {tow['tow_snaps']} snaps (slack to taut), "
               f"largest {tow['tow_snap_peak_N']:.4g} N; least chaser-debris distance "
@@ -942,8 +970,9 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.close()
         return 0
     except KeyboardInterrupt:
-        print("\nbulletnet: interrupted; the recording keeps every frame so far "
-              "(status 'interrupted')", file=sys.stderr)
+        kept = ("; the recording keeps every frame so far (status 'interrupted')"
+                if args.command == "run" else "")
+        print(f"\nbulletnet: interrupted{kept}", file=sys.stderr)
         return 130
 
 

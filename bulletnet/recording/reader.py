@@ -82,6 +82,14 @@ class Recording:
     def status(self) -> str:
         return str(self.attrs.get("status", "unknown"))
 
+    def require_net(self, what: str) -> None:
+        """A clear :class:`RecordingError` if this is a beam's (the cantilever: Ns = 0), for
+        ``what`` needs a net."""
+        if self.nodes_per_side == 0:
+            raise RecordingError(f"{self.path}: a beam (the cantilever), not a net: no {what}; "
+                                 "`bulletnet metrics` gives its tip deflection against beam "
+                                 "theory")
+
 
 def open_recording(path: str | os.PathLike) -> Recording:
     """Load a recording fully into memory; a clear :class:`RecordingError` if it is not one."""
@@ -89,7 +97,8 @@ def open_recording(path: str | os.PathLike) -> Recording:
 
     p = Path(path)
     if not p.is_file():
-        raise RecordingError(f"{p}: no such recording")
+        raise RecordingError(f"{p}: " + ("a folder, not a recording" if p.is_dir() else
+                                         "no such recording"))
     try:
         f = h5py.File(p, "r")
     except OSError as exc:

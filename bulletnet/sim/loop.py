@@ -144,6 +144,8 @@ def _divergence(reason: str, state: NetState, dt: float, integrator: str,
 
 def preflight(scenario: Scenario, out: str | os.PathLike | None, force: bool = False):
     """Check a run before it starts (existing output, recording size); return its model."""
+    if out is not None and Path(out).is_dir():
+        raise ScenarioError(f"{out}: is a folder; the output names the recording's file")
     if out is not None and Path(out).exists() and not force:
         raise ScenarioError(f"{out}: exists; pass --force (force=True) to overwrite it")
     model = build_model(scenario)

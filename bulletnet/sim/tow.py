@@ -153,7 +153,7 @@ class TowOutcome(Observer):
                             enclosed, float(np.linalg.norm(debris[OMEGA])))
 
     def finish(self, run: Run, status: str, attrs: dict) -> None:
-        self.monitor.finish(status == "completed")
+        self.monitor.finish(status == "completed", run.state.time)
         attrs.update(self.monitor.attributes())
 
 

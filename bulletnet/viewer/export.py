@@ -62,6 +62,8 @@ def export_html(replay: Replay, out: str | Path, snapshots: list[float],
     if out.name == "index.html":
         raise ScenarioError(f"{out}: index.html is the folder's list of replays; "
                              "choose another name")
+    if out.is_dir():
+        raise ScenarioError(f"{out}: is a folder; --html names the replay's file")
     if out.exists() and not force:
         raise ScenarioError(f"{out}: exists; pass --force to overwrite it")
     try:

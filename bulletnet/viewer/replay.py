@@ -329,6 +329,7 @@ def read_tow(rec: Recording, frames: np.ndarray, scene) -> TowTrack | None:
 
 def make_track(rec: Recording, colour: tuple[int, int, int], every: int) -> Track:
     """``rec`` decimated to every ``every``-th frame (its last frame always kept)."""
+    rec.require_net("net replay")
     frames = np.unique(np.append(np.arange(0, rec.time.size, every), rec.time.size - 1))
     bending = rec.orientation is not None
     scene = metrics.recorded_scene(rec)
