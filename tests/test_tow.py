@@ -5,6 +5,8 @@ equilibrium tension, and the grid path against the pair list with an orbit."""
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -557,6 +559,12 @@ def test_a_capture_that_fails_stops_a_tow_run_before_any_burn(tmp_path):
     attrs = bn.open_recording(result.path).attrs
     assert attrs["outcome"] == "missed" and result.state.time == pytest.approx(0.1)
     assert attrs["tow_outcome"] == "undecided" and attrs["tow_start_s"] == -1.0
+    # the reason gives the run's end, not a frame it never judged; metrics prints no
+    # measures of a tow that never started (nor its -1 sentinels as values)
+    assert attrs["tow_outcome_reason"] == "the burn had not started by the end, 0.10 s"
+    text = subprocess.run([sys.executable, "-m", "bulletnet.cli.main", "metrics",
+                           str(result.path)], capture_output=True, text=True).stdout
+    assert "burn: never started" in text and "least chaser-debris distance" not in text
 
 
 def test_removal_scene_runs_in_orbit_with_its_shaped_burn(tmp_path):
