@@ -45,6 +45,7 @@ def test_cli_run_writes_documented_layout(tmp_path):
                     "wall_time_s", "compile_time_s", "bulletnet_version", "format_version"):
             assert key in f.attrs, key
         assert f.attrs["status"] == "completed"
+        assert f.attrs["units"] == "dt: s, record_rate: Hz"  # the root's unsuffixed ones
         scene = loads(f.attrs["scenario"])
     assert scene.net.nodes_per_side == 4 and scene.scene.duration == 0.02
     assert not (tmp_path / "run.h5.part").exists()
@@ -165,6 +166,11 @@ def test_a_misspelt_key_in_a_scene_file_gets_the_closest_key(tmp_path):
      "needs debris.mass"),
     (["run", "deployment", "--out", "tests", "--force"], "tests: is a folder"),
     (["metrics", "tests"], "tests: a folder, not a recording"),
+    (["bench", "deployment", "--measures", "wrap"], "--measures wrap: needs debris"),
+    (["run", "deployment", "--engine", "reference", "--integrator", "implicit_euler"],
+     "DOP853"),
+    (["run", "deployment", "--set", "net.nodes_per_side=5000", "--out", "big.h5"],
+     "GB; lower --record-rate"),  # refused before a model of 25 million nodes is built
     (["study"], "give a STUDY.toml to run, or --report DIR\n"),
 ])
 def test_bad_input_one_line_exit_2(args, needle):

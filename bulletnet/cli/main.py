@@ -171,10 +171,10 @@ def _add_bench(sub) -> None:
                        help="scores against the reference: rmse (Eq. 14, position [m] and "
                             "velocity [m/s]), mouth_area (mouth-area curve [m^2]); with "
                             "debris: first_contact (time error [s]), wrap (wrap difference)")
-    bench.add_argument("--front-by", default="rmse_pos_avg", metavar="KEY",
+    bench.add_argument("--front-by", metavar="KEY",
                        help="score of the Pareto front and the chart's axis, e.g. "
                             "rmse_pos_avg [m], mouth_area_rms [m^2], wrap_rms [-] or "
-                            "first_contact_error [s]")
+                            "first_contact_error [s]; default: the first measure's first")
     bench.add_argument("--repeats", type=int, default=1, metavar="N",
                        help="timed repeats of each run (median reported)")
     bench.add_argument("--stability", action="store_true",
@@ -424,15 +424,20 @@ def cmd_bench(args) -> int:
     if unknown:
         raise ScenarioError(f"--measures {unknown[0]}: expected one of {', '.join(MEASURES)}")
     keys = [k for m in args.measures for k in MEASURES[m][1]]
-    if args.front_by not in keys:
-        raise ScenarioError(f"--front-by {args.front_by}: expected a key of the measures "
+    front_by = args.front_by or keys[0]
+    if front_by not in keys:
+        raise ScenarioError(f"--front-by {front_by}: expected a key of the measures "
                             f"chosen: {', '.join(keys)}")
     methods = [parse_method(m) for m in args.methods]
     scene = _scene(args, {"scene.duration": args.duration})
+    with_debris = [m for m in args.measures if m in ("first_contact", "wrap")]
+    if with_debris and not scene.debris.asset:
+        raise ScenarioError(f"--measures {with_debris[0]}: needs debris; "
+                            f"{scene.scene.name} has none")
     horizon = args.stability_horizon or scene.scene.duration if args.stability else None
     doc = bench(scene, methods, sorted(args.dts), Path(args.out),
                 [MEASURES[m][0] for m in args.measures], repeats=args.repeats,
-                stability_horizon=horizon, error_key=args.front_by)
+                stability_horizon=horizon, error_key=front_by)
     stem = Path(args.out) / (f"bench_{doc['scene']}" + ("_bending" if doc["bending"] else ""))
     print(f"Pareto front ({len(doc['pareto_front'])} runs): " + ", ".join(
         f"{r['method']} dt {r['dt_s']:.3g} s" if r["dt_s"] else r["method"]
@@ -462,6 +467,10 @@ def cmd_run(args) -> int:
              "simulation.dt": args.dt, "scene.duration": args.duration,
              "simulation.record_rate": args.record_rate}
     scene = _scene(args, flags)
+    if scene.simulation.engine == "reference" and args.integrator:
+        raise ScenarioError("--integrator: the reference engine integrates with scipy's "
+                            "DOP853 (to its tolerances); the integrators are the fast and "
+                            "bullet engines'")
     out = Path(args.out or f"{scene.scene.name}.h5")
     preflight(scene, out, args.force)
     progress = None if args.quiet else ProgressBar(kernel_group(scene))

@@ -71,7 +71,8 @@ since the frame before, each step's the one it computed its forces from;
 :mod:`bulletnet.kernels.peaks`); the first frame's is its own tension.
 
 Root attributes: ``scenario`` (the TOML as run, overrides applied), ``engine``,
-``integrator``, ``dt`` [s], ``record_rate`` [Hz], ``bending``, ``status`` (running /
+``integrator``, ``dt`` [s], ``record_rate`` [Hz] (their units also in the root attribute
+``units``), ``bending``, ``status`` (running /
 completed / interrupted / diverged), ``message``, ``wall_time_s`` [s] (the run loop's) and
 ``compile_time_s`` [s] (of it, numba compiling kernels its cache lacked: a first run),
 ``bulletnet_version``, ``format_version``, ``nodes_per_side``; with contact
@@ -105,6 +106,9 @@ from ..model.net import NetModel
 from ..model.state import NetState
 
 FORMAT_VERSION = 1
+ROOT_UNITS = "dt: s, record_rate: Hz"
+"""The root attribute ``units``: the units of the root attributes whose names do not end in
+their unit (the others do: ``wall_time_s``, ``first_contact_s``, ...), as ``/debris``'s."""
 FLUSH_INTERVAL_S = 1.0
 """Default wall-clock interval between flushes to disk [s]."""
 
@@ -153,6 +157,7 @@ class Recorder:
             f.attrs[key] = value
         f.attrs["status"] = "running"
         f.attrs["message"] = ""
+        f.attrs["units"] = ROOT_UNITS
         f.attrs["format_version"] = FORMAT_VERSION
         f.attrs["nodes_per_side"] = model.nodes_per_side
 

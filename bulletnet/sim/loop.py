@@ -73,11 +73,11 @@ def frame_times(duration: float, record_rate: float) -> np.ndarray:
     return times
 
 
-def recording_bytes(scenario: Scenario, model) -> float:
-    """Estimated size of a run's recording [bytes]: float64 series per frame (time, positions,
-    velocities, tensions, shear forces; orientations and angular velocities with bending;
-    debris pose and velocities, and contact forces, in scenes that have them)."""
-    n, p = model.node_count, model.thread_count
+def recording_bytes(scenario: Scenario, n: int, p: int) -> float:
+    """Estimated size of a run's recording [bytes] for ``n`` nodes and ``p`` threads: float64
+    series per frame (time, positions, velocities, tensions, shear forces; orientations and
+    angular velocities with bending; debris pose and velocities, and contact forces, in scenes
+    that have them)."""
     per_frame = (1 + 6 * n + 2 * p + (7 * n if scenario.bending.enabled else 0)
                  + (13 if scenario.debris.asset else 0)
                  + (n + 3 if scenario.contact.enabled else 0))
@@ -148,13 +148,19 @@ def preflight(scenario: Scenario, out: str | os.PathLike | None, force: bool = F
         raise ScenarioError(f"{out}: is a folder; the output names the recording's file")
     if out is not None and Path(out).exists() and not force:
         raise ScenarioError(f"{out}: exists; pass --force (force=True) to overwrite it")
-    model = build_model(scenario)
-    if out is not None and not force:
-        size = recording_bytes(scenario, model)
-        if size > MAX_RECORDING_BYTES:
+
+    def check_size(n: int, p: int) -> None:
+        size = recording_bytes(scenario, n, p)
+        if out is not None and not force and size > MAX_RECORDING_BYTES:
             raise ScenarioError(
                 f"{out}: the recording would take about {size / 1e9:.1f} GB; lower "
                 "--record-rate or pass --force")
+
+    if scenario.scene.kind == "net":  # the net's own nodes and threads, before building it
+        ns = scenario.net.nodes_per_side
+        check_size(ns * ns, 2 * ns * (ns - 1))
+    model = build_model(scenario)
+    check_size(model.node_count, model.thread_count)
     return model
 
 
