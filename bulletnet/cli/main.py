@@ -30,7 +30,31 @@ def kernel_group(scene) -> str:
     return ", ".join(parts)
 
 
+def default_text(action: argparse.Action) -> list[str]:
+    """The default an argument's help shows, as texts (none for None, False, [] or a flag)."""
+    value = action.default
+    if value is None or value is False or value == [] or value is argparse.SUPPRESS \
+            or action.nargs == 0:
+        return []
+    values = value if isinstance(value, list | tuple) else [value]
+    return [f"{v:g}" if isinstance(v, float) else str(v) for v in values]
+
+
+class _Help(argparse.HelpFormatter):
+    """Each argument's help with its default, unless the help already names it."""
+
+    def _get_help_string(self, action):
+        text, shown = action.help or "", default_text(action)
+        if shown and "default" not in text:
+            text += " (default: " + " ".join(shown).replace("%", "%%") + ")"
+        return text
+
+
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _Help)
+        super().__init__(*args, **kwargs)
+
     def error(self, message):  # one line, exit code 2, no usage dump
         sys.stderr.write(f"bulletnet: error: {message} (see {self.prog} --help)\n")
         sys.exit(2)

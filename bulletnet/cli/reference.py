@@ -11,7 +11,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .main import build_parser
+from .main import build_parser, default_text
 
 REFRESH = "python -m bulletnet.cli.reference docs/cli.md"
 """The command that rewrites ``docs/cli.md``."""
@@ -32,13 +32,7 @@ def _name(action: argparse.Action) -> str:
 
 
 def _default(action: argparse.Action) -> str:
-    value = action.default
-    if value is None or value is False or value == [] or value is argparse.SUPPRESS \
-            or action.nargs == 0:
-        return ""
-    if isinstance(value, (list, tuple)):
-        return " ".join(f"`{v:g}`" if isinstance(v, float) else f"`{v}`" for v in value)
-    return f"`{value}`"
+    return " ".join(f"`{v}`" for v in default_text(action))
 
 
 def _cell(text: str) -> str:
