@@ -280,3 +280,8 @@ def test_plot_writes_the_figures(tmp_path):
     assert {p.name for p in (tmp_path / "fig").iterdir()} == names
     for name in names:
         assert (tmp_path / "fig" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # a time outside the recording (0 to 0.02 s) is an error, not a snapshot clamped to it
+    for args in (["plot", str(a), "--times", "99", "--out", str(tmp_path / "late")],
+                 ["view", str(a), "--snapshots", "-3", "--html", str(tmp_path / "r.html")]):
+        proc = cli(*args)
+        assert proc.returncode == 2 and "outside the recording, 0 to 0.02 s" in proc.stderr

@@ -963,9 +963,17 @@ def cmd_plot(args) -> int:
 
     a = open_recording(args.a)
     b = open_recording(args.b) if args.b else None
+    _within("--times", args.times, a.time[0], a.time[-1])
     for path in plot_recordings(a, b, args.out, args.times):
         print(path)
     return 0
+
+
+def _within(option: str, times: list[float] | None, start: float, end: float) -> None:
+    """A clear error for a time [s] outside the recorded [start, end]."""
+    for t in times or []:
+        if not start - 1e-9 <= t <= end + 1e-9:
+            raise ScenarioError(f"{option} {t:g}: outside the recording, {start:g} to {end:g} s")
 
 
 def cmd_view(args) -> int:
@@ -974,6 +982,7 @@ def cmd_view(args) -> int:
     if not 0 <= args.port <= 65535:
         raise ScenarioError(f"--port must be 0 to 65535, got {args.port}")
     replay = load_replay(args.runs, args.every)
+    _within("--snapshots", args.snapshots, replay.time[0], replay.time[-1])
     snapshots = args.snapshots or replay.default_snapshots()
     if args.html:
         print(export_html(replay, args.html, snapshots, force=args.force))
