@@ -8,9 +8,10 @@ escaped row of ``runs.csv`` and of every ``confirm_NNNN.csv`` in the folder is r
 its own inputs (the table's columns, at full precision) with the optimisation's fixed
 settings; every measure the changes do not touch must come out the same (first contact, wrap,
 nodes in contact, energy gain, margins, overloads), or the script stops and says which. The
-outcome, the leave time and the wall time are rewritten; the rest of the table is left as it
-is. The optimisation's scores are not recomputed: the script prints the runs whose outcome
-moved, and the designs they belong to.
+outcome and the leave time are rewritten, and the wall time where the outcome moved (a run
+whose outcome stands took the same steps: its wall time is the table's own); the rest of the
+table is left as it is. The optimisation's scores are not recomputed: the script prints the
+runs whose outcome moved, and the designs they belong to.
 
     python benchmarks/rejudge.py scenarios/optimize_capture.toml \
         benchmarks/results/capture_optimisation [--workers 2]
@@ -27,8 +28,9 @@ from bulletnet.studies.optimize import load_optimisation
 from bulletnet.studies.runner import fan_out
 from bulletnet.studies.study import _cell, parse_cell, study_run
 
-REWRITTEN = ("outcome", "leave_s", "wall_s", "message")
-"""The cells a re-run rewrites; every other measure must come out as the table has it."""
+REWRITTEN = ("outcome", "leave_s", "message")
+"""The cells a re-run rewrites (and ``wall_s`` where the outcome moved); every other measure
+must come out as the table has it."""
 
 
 def rejudge(opt, table: Path, workers: int) -> list[dict]:
@@ -55,6 +57,8 @@ def rejudge(opt, table: Path, workers: int) -> list[dict]:
             raise SystemExit(f"rejudge: {table.name} run {row['run']}: {differs or 'status'} "
                              "came out otherwise: not a change of the judge alone")
         old = (row["outcome"], row["leave_s"])
+        if result["outcome"] != old[0]:
+            row["wall_s"] = _cell(result["wall_s"])
         for key in REWRITTEN:
             row[key] = _cell(result[key])
         if (row["outcome"], parse_cell(row["leave_s"])) != (old[0], parse_cell(old[1])):
