@@ -391,9 +391,13 @@ def assess(opt: Optimisation, rows: list[dict], quantities: dict) -> dict:
     """A design's scores from its runs' rows and its design quantities: ``objective`` (None
     if no run gives it), the success count and Wilson interval (``p``, ``low``, ``high``) of
     a probability objective, ``cost``, ``score``, each constraint's violation (<= 0:
-    satisfied; the worst draw's) and ``feasible``."""
+    satisfied; the worst draw's) and ``feasible``. A run that did not complete counts
+    against the design: not a success of a maximised probability, an event of a minimised
+    one; no score under a mean objective (the trial fails); an infinite violation of each
+    constraint on a measure (a draw that shows nothing cannot show it holds)."""
     ob = opt.objective
     done = [r for r in rows if r["status"] == "completed"]
+    incomplete = len(rows) - len(done)
     result = {"runs": len(rows), "completed": len(done), **quantities}
 
     def values(name: str) -> list[float]:
@@ -403,12 +407,13 @@ def assess(opt: Optimisation, rows: list[dict], quantities: dict) -> dict:
 
     if ob.probability:
         hits = sum(r.get(ob.measure) == ob.equals for r in done)
-        p, low, high = wilson(hits, len(rows), ob.confidence)
+        counted = hits if ob.direction == "maximize" else hits + incomplete
+        p, low, high = wilson(counted, len(rows), ob.confidence)
         result |= {"successes": hits, "p": p, "low": low, "high": high,
                    "objective": low if ob.direction == "maximize" else high}
     else:
         found = values(ob.measure)
-        result["objective"] = statistics.fmean(found) if found else None
+        result["objective"] = statistics.fmean(found) if found and not incomplete else None
     cost = 0.0
     if ob.cost is not None:
         found = values(ob.cost)
@@ -423,7 +428,8 @@ def assess(opt: Optimisation, rows: list[dict], quantities: dict) -> dict:
         found = values(name)
         worst = [bound["min"] - v for v in found] if "min" in bound else []
         worst += [v - bound["max"] for v in found] if "max" in bound else []
-        violations[name] = max(worst, default=0.0)
+        violations[name] = (math.inf if incomplete and name not in quantities
+                            else max(worst, default=0.0))
     result["constraints"] = violations
     result["feasible"] = all(v <= 0 for v in violations.values())
     return result
