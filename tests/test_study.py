@@ -18,7 +18,14 @@ from test_recording_cli import cli
 
 import bulletnet as bn
 import bulletnet.model.scenario
-from bulletnet.studies.report import load, report, sobol_indices, summary_text, wilson
+from bulletnet.studies.report import (
+    load,
+    probabilities,
+    report,
+    sobol_indices,
+    summary_text,
+    wilson,
+)
 from bulletnet.studies.study import (
     ISHIGAMI_S1,
     ISHIGAMI_ST,
@@ -269,6 +276,22 @@ def test_wilson_interval_matches_closed_form_values():
     # the interval always holds p_hat, also where round-off meets 0 or 1 (20 of 20, say)
     assert all(wilson(k, n)[1] <= k / n <= wilson(k, n)[2]
                for n in range(1, 200) for k in range(n + 1))
+
+
+def test_a_sobol_designs_probabilities_count_its_independent_draws_only():
+    # Reference: Saltelli's blocks (SALib, calc_second_order=False): per base sample A, AB_1 ..
+    # AB_D, B, where each AB_i repeats A but for input i. With D = 2 and N = 3 the 12 rows hold
+    # 6 independent draws (A and B); an event true on every AB row and false on every A and
+    # B row has probability 0 of 6, not 6 of 12. Numeric choices bin in numeric order.
+    doc = {"design": "sobol", "columns": {"a": "a", "n": "n"}, "measures": ["hit"],
+           "vary": {"a": {"dist": "uniform"}, "n": {"dist": "choice"}}}
+    rows = [{"run": k, "status": "completed", "a": k / 12, "n": (9, 11, 7)[k % 3],
+             "hit": k % 4 not in (0, 3)} for k in range(12)]
+    hit = probabilities(doc, rows)["hit"]
+    assert hit["overall"]["True"]["count"] == 0 and hit["overall"]["True"]["n"] == 6
+    assert [b["bin"] for b in hit["by_input"]["n"]] == [7, 9, 11]
+    random = probabilities({**doc, "design": "random"}, rows)["hit"]["overall"]["True"]
+    assert (random["count"], random["n"]) == (6, 12)
 
 
 def test_report_probabilities_and_figures(tmp_path):

@@ -10,7 +10,8 @@ runs anything, so it also reads a study still running or stopped half-way).
   and, for each measure some completed run never reached (``first_contact_s``, ``leave_s``,
   ``deployed_90pct_s``: the event "MEASURE reached", True or False), the probability of each
   value with its Wilson score interval (:func:`wilson`), overall and binned by each input
-  (quantile bins; one bin per value of a ``choice`` input);
+  (quantile bins; one bin per value of a ``choice`` input), over the completed runs that
+  are independent draws (:func:`independent`: of a Sobol' design, its A and B samples);
 - ``sobol`` (Sobol' designs): first-order ``S1`` and total ``ST`` indices of each numeric
   measure for each input, with the half-widths of their bootstrap confidence intervals
   (SALib's ``analyze.sobol``); a measure missing in a run, or constant, is listed under
@@ -71,11 +72,20 @@ def load(out: Path) -> tuple[dict, list[dict]]:
     return doc, [rows[k] for k in sorted(rows)]
 
 
+def _order(values) -> list:
+    """The distinct values, in order: numbers by value, anything else by its text."""
+    distinct = set(values)
+    numbers = all(isinstance(v, int | float) and not isinstance(v, bool) for v in distinct)
+    return sorted(distinct) if numbers else sorted(distinct, key=str)
+
+
 def _bins(values: list, bins: int, by_value: bool) -> tuple[list, list]:
     """Each value's bin and the bins' labels: one bin per distinct value (``by_value``: a
-    ``choice`` input), else ``bins`` quantile bins [lo, hi] (fewer if values repeat)."""
+    ``choice`` input, in :func:`_order`), else ``bins`` quantile bins labelled [lo, hi] (fewer
+    if values repeat): a value on an inner edge falls in the bin above it, so each bin holds
+    lo <= v < hi but the last, lo <= v <= hi."""
     if by_value:
-        distinct = sorted(set(values), key=str)
+        distinct = _order(values)
         return [distinct.index(v) for v in values], distinct
     edges = np.unique(np.quantile(np.asarray(values, dtype=float), np.linspace(0, 1, bins + 1)))
     count = max(edges.size - 1, 1)
@@ -95,10 +105,22 @@ def _proportions(values: list, categories: list, conf: float) -> dict:
     return out
 
 
+def independent(doc: dict, rows: list[dict]) -> list[dict]:
+    """The rows that are independent draws of the inputs: all of them, but of a Sobol' design
+    only its two base samples, A and B, 2N of its N (D + 2) rows (Saltelli's blocks
+    A, AB_1 .. AB_D, B: each AB_i is A with one input of B, so it repeats A's other D - 1
+    inputs, and the whole of A where the two drew the same value of a ``choice``)."""
+    if doc["design"] != "sobol":
+        return rows
+    block = len(doc["columns"]) + 2
+    return [r for r in rows if r["run"] % block in (0, block - 1)]
+
+
 def probabilities(doc: dict, rows: list[dict], conf: float = 0.95, bins: int = 4) -> dict:
     """Outcome and event probabilities with Wilson intervals, overall and by input (see the
-    module doc); {} if the study has neither."""
-    done = [r for r in rows if r["status"] == "completed"]
+    module doc), over the completed runs of :func:`independent`'s rows (a Wilson interval
+    assumes independent trials); {} if the study has neither."""
+    done = [r for r in independent(doc, rows) if r["status"] == "completed"]
     columns = {}  # name -> (runs, the value of a run)
     for name in OUTCOMES:
         if any(r.get(name) is not None for r in done):
@@ -112,7 +134,7 @@ def probabilities(doc: dict, rows: list[dict], conf: float = 0.95, bins: int = 4
     result = {}
     for name, (subset, value) in columns.items():
         values = [value(r) for r in subset]
-        categories = sorted(set(values), key=str) if name in OUTCOMES else [True, False]
+        categories = _order(values) if name in OUTCOMES else [True, False]
         by_input = {}
         for key, column in doc["columns"].items():
             index, labels = _bins([r[column] for r in subset], bins,
