@@ -78,7 +78,8 @@ def test_mouth_area_measure_is_the_curve_difference(tmp_path):
 
 @pytest.mark.parametrize(("args", "needle"), [
     (["--measures", "area"], "--measures area"),
-    (["--measures", "mouth_area"], "--front-by rmse_pos_avg"),
+    # a --front-by of a measure not chosen (the default is the chosen measures' first)
+    (["--measures", "mouth_area", "--front-by", "rmse_pos_avg"], "--front-by rmse_pos_avg"),
 ])
 def test_bad_bench_measures_are_one_line_errors(args, needle):
     proc = cli("bench", "deployment", *args)

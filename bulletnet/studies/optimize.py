@@ -392,9 +392,10 @@ def assess(opt: Optimisation, rows: list[dict], quantities: dict) -> dict:
     if no run gives it), the success count and Wilson interval (``p``, ``low``, ``high``) of
     a probability objective, ``cost``, ``score``, each constraint's violation (<= 0:
     satisfied; the worst draw's) and ``feasible``. A run that did not complete counts
-    against the design: not a success of a maximised probability, an event of a minimised
-    one; no score under a mean objective (the trial fails); an infinite violation of each
-    constraint on a measure (a draw that shows nothing cannot show it holds)."""
+    against a probability objective's design (not a success of a maximised probability, an
+    event of a minimised one); a mean objective and the constraints are taken over the
+    completed runs (a failure that a draw causes in every design must not leave the
+    optimisation without a score: ``completed`` says how many runs count)."""
     ob = opt.objective
     done = [r for r in rows if r["status"] == "completed"]
     incomplete = len(rows) - len(done)
@@ -413,7 +414,7 @@ def assess(opt: Optimisation, rows: list[dict], quantities: dict) -> dict:
                    "objective": low if ob.direction == "maximize" else high}
     else:
         found = values(ob.measure)
-        result["objective"] = statistics.fmean(found) if found and not incomplete else None
+        result["objective"] = statistics.fmean(found) if found else None
     cost = 0.0
     if ob.cost is not None:
         found = values(ob.cost)
@@ -428,8 +429,7 @@ def assess(opt: Optimisation, rows: list[dict], quantities: dict) -> dict:
         found = values(name)
         worst = [bound["min"] - v for v in found] if "min" in bound else []
         worst += [v - bound["max"] for v in found] if "max" in bound else []
-        violations[name] = (math.inf if incomplete and name not in quantities
-                            else max(worst, default=0.0))
+        violations[name] = max(worst, default=0.0)
     result["constraints"] = violations
     result["feasible"] = all(v <= 0 for v in violations.values())
     return result
