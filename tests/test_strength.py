@@ -231,7 +231,8 @@ def test_study_report_gives_the_probability_of_an_overload():
     # breaking tension (a true/false measure), overall and by input bin.
     from bulletnet.studies.report import probabilities, wilson
 
-    doc = {"measures": ["min_safety_factor", "overloaded_elements", "overloaded"],
+    doc = {"design": "random",
+           "measures": ["min_safety_factor", "overloaded_elements", "overloaded"],
            "columns": {"net.thread_radius": "net.thread_radius_m"},
            "vary": {"net.thread_radius": {"dist": "uniform"}}}
     over = [True, True, False, False, False]
