@@ -86,7 +86,7 @@ def main() -> None:
     parser.add_argument("--out", default="benchmarks/results/viewer.json")
     args = parser.parse_args()
     doc = {"machine": machine(),
-           "recordings": args.runs, "live": live(args.runs),
+           "recordings": [Path(p).name for p in args.runs], "live": live(args.runs),
            "export": [export(args.runs, every) for every in (1, 5)]}
     Path(args.out).write_text(json.dumps(doc, indent=2))
     print(json.dumps(doc, indent=2))
