@@ -295,7 +295,7 @@ class OutcomeMonitor:
         centre = origin + rotation_matrix(quaternion) @ g.center_of_mass
         net = slice(0, g.net_nodes)
         away = receding(positions[net], velocities[net], g.mass, centre, debris_velocity)
-        past = (self._last_contact is None and contacts == 0
+        past = (self.rules.miss_time == 0 and self._last_contact is None and contacts == 0
                 and all_receding(positions[net], velocities[net], centre, debris_velocity))
         self.update(t, s, contacts, away, past)
         return None if judge_only else s
@@ -304,7 +304,8 @@ class OutcomeMonitor:
         """Judge the frame at time ``t`` [s] from its score, the nodes that touched the debris
         since the last frame [-], whether the net's centre of mass moves away from the debris'
         (:func:`receding`: an escape) and whether every one of its nodes does
-        (:func:`all_receding`: a miss; needed only while nothing has touched)."""
+        (:func:`all_receding`: a miss by the end; needed only while nothing has touched and
+        with ``miss_time`` 0, and computed only then)."""
         r = self.rules
         self._last_time, self._last_past = t, past
         if self.decided:

@@ -123,18 +123,19 @@ def summary(rec: Recording) -> dict:
     measures under ``capture`` for recordings with debris and contact, the burn's and the
     tow's recorded attributes (``thrust_*``, ``tow_*``) under ``tow``, and the reel at the
     chaser under ``reel`` (:func:`reel_summary`) for recordings with one."""
-    if rec.nodes_per_side == 0:  # a beam (the cantilever), not a net: no net measures
-        return {"time_s": rec.time.tolist(), "status": rec.status, "beam": beam_summary(rec),
-                "strength": strength_summary(rec) | {"breakage": breakage(rec)}}
-    doc = {
-        "time_s": rec.time.tolist(),
-        "mouth_area_m2": mouth_area(rec).tolist(),
-        "mouth_diagonal_m": mouth_diagonal(rec).tolist(),
-        "net_height_m": net_height(rec).tolist(),
-        "status": rec.status,
-    }
+    doc = {"time_s": rec.time.tolist()}
+    beam = rec.nodes_per_side == 0  # a beam (the cantilever), not a net: no net measures
+    if beam:
+        doc["beam"] = beam_summary(rec)
+    else:
+        doc |= {"mouth_area_m2": mouth_area(rec).tolist(),
+                "mouth_diagonal_m": mouth_diagonal(rec).tolist(),
+                "net_height_m": net_height(rec).tolist()}
+    doc["status"] = rec.status
     doc["strength"] = strength_summary(rec)
     doc["strength"]["breakage"] = breakage(rec)  # what failed; None without breakage
+    if beam:
+        return doc
     if rec.debris is not None and rec.contacts is not None:
         doc["capture"] = capture_summary(rec)
     tow = {k: v.item() if hasattr(v, "item") else v for k, v in rec.attrs.items()

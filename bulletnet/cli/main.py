@@ -835,17 +835,24 @@ def cmd_metrics(args) -> int:
     print("   time [s]  mouth area [m^2]  mouth diagonal [m]  net height [m]"
           + ("  contacts [-]  wrap [-]  enclosed [-]  mouth [-]  quality [-]"
              if capture else ""))
-    next_t = 0.0
-    for k, t in enumerate(doc["time_s"]):
-        if t + 1e-9 >= next_t or k == len(doc["time_s"]) - 1:
-            extra = (f" {capture['nodes_in_contact'][k]:13d} {capture['wrap'][k]:9.3f}"
-                     f" {capture['enclosed_fraction'][k]:13.3f}"
-                     f" {capture['mouth_opening'][k]:10.3f}"
-                     f" {capture['capture_quality'][k]:12.3f}" if capture else "")
-            print(f"{t:11.3f} {doc['mouth_area_m2'][k]:17.5g} {doc['mouth_diagonal_m'][k]:19.5g} "
-                  f"{doc['net_height_m'][k]:15.5g}{extra}")
-            next_t = t + args.every
+    for k in _rows(doc["time_s"], args.every):
+        extra = (f" {capture['nodes_in_contact'][k]:13d} {capture['wrap'][k]:9.3f}"
+                 f" {capture['enclosed_fraction'][k]:13.3f}"
+                 f" {capture['mouth_opening'][k]:10.3f}"
+                 f" {capture['capture_quality'][k]:12.3f}" if capture else "")
+        print(f"{doc['time_s'][k]:11.3f} {doc['mouth_area_m2'][k]:17.5g} "
+              f"{doc['mouth_diagonal_m'][k]:19.5g} {doc['net_height_m'][k]:15.5g}{extra}")
     return 0
+
+
+def _rows(times: list[float], every: float):
+    """The frames a text table prints: the first, then the first at least ``every`` [s]
+    after the last printed, and the last frame."""
+    next_t = 0.0
+    for k, t in enumerate(times):
+        if t + 1e-9 >= next_t or k == len(times) - 1:
+            yield k
+            next_t = t + every
 
 
 def _print_beam(doc: dict, every: float) -> None:
@@ -859,11 +866,8 @@ def _print_beam(doc: dict, every: float) -> None:
     print(f"tip displacement at the end [mm]: {mm(tip[-1])}; static, Euler-Bernoulli: "
           f"{mm(theory)}; the two-node model's: {mm(lumped)}")
     print("   time [s]  tip x [mm]  tip y [mm]  tip z [mm]")
-    next_t = 0.0
-    for k, t in enumerate(doc["time_s"]):
-        if t + 1e-9 >= next_t or k == len(doc["time_s"]) - 1:
-            print(f"{t:11.3f}" + "".join(f" {1e3 * c:11.4f}" for c in tip[k]))
-            next_t = t + every
+    for k in _rows(doc["time_s"], every):
+        print(f"{doc['time_s'][k]:11.3f}" + "".join(f" {1e3 * c:11.4f}" for c in tip[k]))
 
 
 def _where(margin: dict) -> str:
