@@ -81,16 +81,16 @@ def test_mouth_area_measure_is_the_curve_difference(tmp_path):
     # a --front-by of a measure not chosen (the default is the chosen measures' first)
     (["--measures", "mouth_area", "--front-by", "rmse_pos_avg"], "--front-by rmse_pos_avg"),
 ])
-def test_bad_bench_measures_are_one_line_errors(args, needle):
-    proc = cli("bench", "deployment", *args)
+def test_bad_bench_measures_are_one_line_errors(args, needle, tmp_path):
+    proc = cli("bench", "deployment", *args, "--out", str(tmp_path))
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and needle in proc.stderr
 
 
 @pytest.mark.parametrize("text", ["fast", "fast:rk4", "vortex:symplectic_euler", "reference:x"])
-def test_bad_methods_are_one_line_errors(text):
+def test_bad_methods_are_one_line_errors(text, tmp_path):
     with pytest.raises(bn.ScenarioError, match="ENGINE:INTEGRATOR"):
         parse_method(text)
-    proc = cli("bench", "deployment", "--methods", text)
+    proc = cli("bench", "deployment", "--methods", text, "--out", str(tmp_path))
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1
 
 

@@ -6,6 +6,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -15,6 +16,7 @@ import bulletnet as bn
 from bulletnet.model.scenario import loads, to_toml
 from tests.conftest import small_scene
 
+ROOT = Path(__file__).resolve().parent.parent
 TINY = ["--set", "net.nodes_per_side=4", "--set", "net.fold_ratio=0.99",
         "--duration", "0.02", "--record-rate", "500"]
 
@@ -160,9 +162,9 @@ def test_a_misspelt_key_in_a_scene_file_gets_the_closest_key(tmp_path):
     (["run", "deployment", "--set", "outcome.enabled=true"], "outcome.enabled"),
     (["run", "capture", "--set", "outcome.enclosed_fraction=1.5"], "in (0, 1]"),
     (["compare", "missing_a.h5", "missing_b.h5"], "no such recording"),
-    (["metrics", "pyproject.toml"], "not a readable HDF5"),
-    (["params", "capture", "--set", "debris.asset='pyproject.toml'"], "[[parts]]"),
-    (["params", "capture", "--set", "debris.asset='assets/meshes/apollo_csm.obj'"],
+    (["metrics", str(ROOT / "pyproject.toml")], "not a readable HDF5"),
+    (["params", "capture", "--set", f"debris.asset='{ROOT / 'pyproject.toml'}'"], "[[parts]]"),
+    (["params", "capture", "--set", f"debris.asset='{ROOT / 'assets/meshes/apollo_csm.obj'}'"],
      "needs debris.mass"),
     (["run", "deployment", "--out", "tests", "--force"], "tests: is a folder"),
     (["metrics", "tests"], "tests: a folder, not a recording"),
@@ -173,10 +175,11 @@ def test_a_misspelt_key_in_a_scene_file_gets_the_closest_key(tmp_path):
      "GB; lower --record-rate"),  # refused before a model of 25 million nodes is built
     (["study"], "give a STUDY.toml to run, or --report DIR\n"),
 ])
-def test_bad_input_one_line_exit_2(args, needle):
-    import pathlib
-
-    proc = cli(*args, cwd=pathlib.Path(__file__).parent.parent)
+def test_bad_input_one_line_exit_2(args, needle, tmp_path):
+    # run in tmp_path, where a command that wrongly went ahead would write its default output
+    # (SCENE.h5, bench/, --out big.h5); "tests" is a folder there, as in the repository
+    (tmp_path / "tests").mkdir()
+    proc = cli(*args, cwd=tmp_path)
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
     assert needle in proc.stderr
