@@ -53,7 +53,8 @@ PASS_BYTES = {"stencils": 18, "node_pass": 11, "peaks": 5}
 """Doubles each pass reads plus writes per thread (the stencils: both nodes' x and v, rest,
 k, c; T e written; the peaks: T e and the running maximum read, it written) or per node
 component (the node pass: base, other, 1/m, four threads' T e, v and x read; v, x
-written)."""
+written; one fewer where the base rows are all zero and not read,
+:func:`bulletnet.solver.grid.base_rows`)."""
 
 
 @nb.njit(error_model="numpy", inline="always")
@@ -92,10 +93,11 @@ def _probe(g, level, calls):
 
 
 @nb.njit(error_model="numpy", _nrt=False)
-def _node_pass(g, dt, calls):
-    """``calls`` node passes of the free step (no bending, no increment kept)."""
+def _node_pass(g, dt, calls, base):
+    """``calls`` node passes of the free step (no bending, no increment kept; ``base`` as
+    the run passes it, :func:`bulletnet.solver.grid.base_rows`)."""
     for _ in range(calls):
-        G.node_pass(g, dt, None, False)
+        G.node_pass(g, dt, None, False, base)
 
 
 @nb.njit(error_model="numpy", _nrt=False)
@@ -111,11 +113,12 @@ def _others(g, views, dt, calls):
 
 
 def working_set(g, peaks) -> int:
-    """Bytes of the rows a free step reads or writes: x, v, base, other, 1/m, the
-    threads' T e and parameters, the running maxima."""
-    rows = (g.x, g.v, g.base, g.other, g.inv_mass, g.th, g.tv, g.h_rest, g.h_k,
-            g.h_c, g.v_rest, g.v_k, g.v_c, peaks.rows)
-    return sum(r.nbytes for r in rows)
+    """Bytes of the rows a free step reads or writes: x, v, base (where it is read), other,
+    1/m, the threads' T e and parameters, the running maxima."""
+    rows = (g.x, g.v, g.other, g.inv_mass, g.th, g.tv, g.h_rest, g.h_k, g.h_c, g.v_rest,
+            g.v_k, g.v_c, peaks.rows)
+    base = G.base_rows(g)
+    return sum(r.nbytes for r in rows) + (0 if base is None else base.nbytes)
 
 
 class StepParts(At):
@@ -139,9 +142,10 @@ class StepParts(At):
             return timed_call
 
         parts = {
-            "step": fresh(lambda k: loop(g, views, k, dt, 0.0, e.work.cg_iterations, peaks)),
+            "step": fresh(lambda k: loop(g, views, k, dt, 0.0, e.work.cg_iterations, peaks,
+                                            G.base_rows(g))),
             "stencils": lambda k: _probe(g, 2, k),
-            "node_pass": fresh(lambda k: _node_pass(g, dt, k)),
+            "node_pass": fresh(lambda k: _node_pass(g, dt, k, G.base_rows(g))),
             "peaks": lambda k: _peaks(g, peaks, k),
             "other_threads": lambda k: _others(g, views, dt, k),
             "probe_sqrt_reciprocal": lambda k: _probe(g, 0, k),
@@ -149,8 +153,9 @@ class StepParts(At):
         }
         rows = 3 * g.x.shape[1]  # node components in the node pass
         threads = g.h_rest.shape[0] + g.v_rest.shape[0]
+        node_doubles = PASS_BYTES["node_pass"] - (G.base_rows(g) is None)
         traffic = 8 * (threads * (PASS_BYTES["stencils"] + PASS_BYTES["peaks"])
-                       + rows * PASS_BYTES["node_pass"])
+                       + rows * node_doubles)
         working = working_set(g, peaks)
         times = {name: [] for name in parts}
         bounds, bandwidths = [], []

@@ -176,7 +176,8 @@ class FastEngine(Engine):
             if free:
                 grid_kernels.free_steps(self.implicit)(self.grid, self.views, todo, dt,
                                                        self.cg_tolerance,
-                                                       self.work.cg_iterations, self.peaks)
+                                                       self.work.cg_iterations, self.peaks,
+                                                       grid_kernels.base_rows(self.grid))
                 self.step_work.step_count[0] += todo
                 taken = todo
             else:

@@ -404,35 +404,36 @@ def thread_forces(grid, views, dt):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _net_force(grid, a, i, ns, bending_scale):
+def _net_force(grid, base, a, i, ns, bending_scale):
     """Component a of node i's force [N]: base + bending_scale bend + its grid threads
     (:func:`_neighbours`) + the other threads; zero on a padding column. ``bending_scale``
     None: no bending, bend not read (base + 0 bend is base: the same bits, a row less to read
-    a step)."""
-    if bending_scale is None:
-        start = grid.base[a, i]
-    else:
-        start = grid.base[a, i] + bending_scale * grid.bend[a, i]
+    a step); ``base`` None: no base forces, 0.0 in their place (the same operations on the
+    same values as a zero row: the same bits, a row less; a net in 0 g with no load)."""
+    start = 0.0 if base is None else base[a, i]
+    if bending_scale is not None:
+        start = start + bending_scale * grid.bend[a, i]
     return _neighbours(start, grid.th, grid.tv, a, i, ns, 1.0) + grid.other[a, i]
 
 
 @nb.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def symplectic_step(grid, views, dt, bending_scale, increment):
+def symplectic_step(grid, views, dt, bending_scale, increment, base):
     """One symplectic Euler step of every node: :func:`thread_forces`, then dv = dt F / m with
-    F = :func:`_net_force`, v <- v + dv, x <- x + dt v, in one pass over the rows (padding
-    columns included: they have no force and no mass, and stay at rest); dv is kept in its
-    rows only with ``increment`` (the contact stage reads it).
+    F = :func:`_net_force` (``base``: the grid's base rows, or None where they are all zero),
+    v <- v + dv, x <- x + dt v, in one pass over the rows (padding columns included: they
+    have no force and no mass, and stay at rest); dv is kept in its rows only with
+    ``increment`` (the contact stage reads it).
 
     Inlined into the loops that call it, as :func:`track_peaks` is: a call passes the grid's
     arrays field by field (195 words pushed on the stack, read with ``inspect_asm``) and the
     callee reads them afresh, every step; the plain deployment's ~1 us step took 0.76-0.83
     of its time inlined (benchmarks/grid_step.py, docs/speed.md)."""
     thread_forces(grid, views, dt)
-    node_pass(grid, dt, bending_scale, increment)
+    node_pass(grid, dt, bending_scale, increment, base)
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def node_pass(grid, dt, bending_scale, increment):
+def node_pass(grid, dt, bending_scale, increment, base):
     """The node pass of :func:`symplectic_step`, after :func:`thread_forces`: dv = dt F / m
     with F = :func:`_net_force`, v <- v + dv, x <- x + dt v over the rows, dv kept only with
     ``increment``."""
@@ -441,12 +442,12 @@ def node_pass(grid, dt, bending_scale, increment):
     for a in range(U(3)):
         if increment:  # two loops written out: one loop with this test inside is 5-10 % slower
             for i in range(length):
-                dv[a, i] = dt * inv_mass[i] * _net_force(grid, a, i, ns, bending_scale)
+                dv[a, i] = dt * inv_mass[i] * _net_force(grid, base, a, i, ns, bending_scale)
                 v[a, i] += dv[a, i]
                 x[a, i] += dt * v[a, i]
         else:
             for i in range(length):
-                v[a, i] += dt * inv_mass[i] * _net_force(grid, a, i, ns, bending_scale)
+                v[a, i] += dt * inv_mass[i] * _net_force(grid, base, a, i, ns, bending_scale)
                 x[a, i] += dt * v[a, i]
 
 
@@ -644,26 +645,33 @@ def implicit_step(grid, views, dt, tol, iterations):
 
 @functools.cache
 def free_steps(implicit: bool):
-    """The compiled loop ``(grid, views, steps, dt, tol, iterations, peaks)`` that takes
+    """The compiled loop ``(grid, views, steps, dt, tol, iterations, peaks, base)`` that takes
     ``steps`` steps of implicit Euler (``implicit``: CG to the relative residual ``tol``,
     ``iterations`` (1,) counting) or of symplectic Euler of a net with no bending, no contact
-    and no cables: the threads, gravity, loads and external forces only; after each step the
-    threads' largest tensions (:func:`track_peaks`; ``peaks`` None: none, nothing compiled).
-    (One compiled loop around the step kernels: no per-step bookkeeping. ``implicit`` is a
-    constant of the loop, so numba prunes the other integrator's branch and compiles only the
-    step in use.)"""
+    and no cables: the threads, gravity, loads and external forces only (``base``: the grid's
+    base rows, or None where they are all zero, :func:`base_rows`; symplectic Euler then
+    reads no base row); after each step the threads' largest tensions (:func:`track_peaks`;
+    ``peaks`` None: none, nothing compiled). (One compiled loop around the step kernels: no
+    per-step bookkeeping. ``implicit`` is a constant of the loop, so numba prunes the other
+    integrator's branch and compiles only the step in use.)"""
 
     @nb.njit(cache=True, error_model="numpy", _nrt=False)
-    def free_loop(grid, views, steps, dt, tol, iterations, peaks):
+    def free_loop(grid, views, steps, dt, tol, iterations, peaks, base):
         for _ in range(steps):
             if implicit:
                 implicit_step(grid, views, dt, tol, iterations)
             else:
-                symplectic_step(grid, views, dt, None, False)
+                symplectic_step(grid, views, dt, None, False, base)
             if peaks is not None:
                 track_peaks(grid, peaks)
 
     return free_loop
+
+
+def base_rows(grid: Grid) -> np.ndarray | None:
+    """The grid's base rows for :func:`free_steps`, or None where every base force is zero (a
+    net in 0 g with no load or external force)."""
+    return grid.base if grid.base.any() else None
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")

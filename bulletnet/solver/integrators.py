@@ -530,7 +530,8 @@ def advance(on_grid: bool, implicit: bool):
                 if implicit:
                     grid_kernels.implicit_step(grid, views, dt, tol, work.cg_iterations)
                 else:
-                    grid_kernels.symplectic_step(grid, views, dt, weight, contact is not None)
+                    grid_kernels.symplectic_step(grid, views, dt, weight, contact is not None,
+                                                 grid.base)
                 work.step_count[0] += 1
             else:  # the increment's kernel named, not captured (see increment)
                 if implicit:
