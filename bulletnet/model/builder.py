@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 
@@ -66,10 +67,38 @@ def lumped_masses(node_count: int, pairs: np.ndarray, thread_mass: np.ndarray) -
     return mass
 
 
+BYTES_PER_NODE = 3000
+"""Memory a net's node takes once its model and engine are built [bytes]: 2.4-2.9 KB a node
+for the deployment and the capture at Ns = 60 and 120 (peak of Python's allocations while
+building, ``tracemalloc``), rounded up."""
+
+
+def check_memory(s: Scenario) -> None:
+    """Refuse a net whose model and engine would not fit in this machine's memory
+    (:data:`BYTES_PER_NODE` a node against the physical memory), before anything is built: a
+    one-line :class:`ScenarioError` rather than hours of swapping or an out-of-memory kill.
+    Not checked where the system does not tell its memory."""
+    if s.scene.kind != "net":
+        return
+    try:
+        have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return
+    ns = s.net.nodes_per_side
+    need = BYTES_PER_NODE * ns * ns
+    if need > have:
+        raise ScenarioError(
+            f"{s.source}: net.nodes_per_side = {ns} ({ns * ns} nodes) needs about "
+            f"{need / 1e9:.0f} GB to build and run, more than this machine's "
+            f"{have / 1e9:.0f} GB; lower net.nodes_per_side")
+
+
 def build_model(s: Scenario) -> NetModel:
     """The scene's model: the square net (Eq. 1-5, Table 7) or the clamped beam (Fig. 2).
     A scene whose values are each valid but whose derived quantities overflow (a 1e300 m
-    mesh, say) is a :class:`ScenarioError`."""
+    mesh, say), or whose net would not fit in memory (:func:`check_memory`), is a
+    :class:`ScenarioError`."""
+    check_memory(s)
     with np.errstate(all="ignore"):
         model = _build_beam(s) if s.scene.kind == "cantilever" else _build_net(s)
         state = initial_state(s, model)
