@@ -197,6 +197,17 @@ def test_params_prints_the_debris_mass_properties():
     np.testing.assert_array_equal(debris["principal_axes"], envisat.principal_axes.T)
 
 
+def test_params_describes_the_beam_as_a_beam():
+    # Reference: scenarios/cantilever.toml, a two-node beam 0.5 m long (Fig. 2): no net side,
+    # no corner threads, no contact pairs.
+    doc = json.loads(cli("params", "cantilever", "--json").stdout)
+    assert doc["beam_length_m"] == 0.5 and "nodes_per_side" not in doc
+    assert list(doc["threads"]) == ["inner"] and doc["contact"] == {}
+    text = cli("params", "cantilever").stdout
+    assert text.startswith("scene cantilever: a beam 0.5 m long, 2 masses, 1 threads")
+    assert "threads (Table 7)        inner\n" in text and "contact pair" not in text
+
+
 def test_existing_output_needs_force(tmp_path):
     out = tmp_path / "x.h5"
     out.write_bytes(b"keep me")

@@ -703,10 +703,16 @@ def cmd_params(args) -> int:
         mat = fit(scene, model, bool(scene.debris.asset))
         pybullet_fit = {pair: {"k_c_rel_error": e[0], "c_c_rel_error": e[1],
                                "mu_k_rel_error": e[2]} for pair, e in mat.errors.items()}
+    beam = scene.scene.kind == "cantilever"
+    shape = ({"beam_length_m": scene.beam.length} if beam else
+             {"nodes_per_side": model.nodes_per_side,
+              "side_length_m": (model.nodes_per_side - 1) * scene.net.mesh_length})
+    if beam:  # one element, no corner threads, no contact
+        del threads["corner"]
+        contact = {}
     doc = {
         "scene": scene.scene.name,
-        "nodes_per_side": model.nodes_per_side,
-        "side_length_m": (model.nodes_per_side - 1) * scene.net.mesh_length,
+        **shape,
         "node_count": model.node_count,
         "thread_count": model.thread_count,
         "total_mass_kg": float(model.mass.sum()),
@@ -726,23 +732,25 @@ def cmd_params(args) -> int:
     if args.json:
         print(json.dumps(doc, indent=2))
         return 0
-    print(f"scene {doc['scene']}: Ns = {model.nodes_per_side}, side {doc['side_length_m']:g} m, "
-          f"{model.node_count} masses, {model.thread_count} threads, "
-          f"total mass {doc['total_mass_kg']:.6g} kg")
+    size = (f"a beam {doc['beam_length_m']:g} m long" if beam else
+            f"Ns = {model.nodes_per_side}, side {doc['side_length_m']:g} m")
+    print(f"scene {doc['scene']}: {size}, {model.node_count} masses, {model.thread_count} "
+          f"threads, total mass {doc['total_mass_kg']:.6g} kg")
     print("\nnodes        count    mass [kg]   radius [m]")
     for name, v in kinds.items():
         print(f"{name:<12}{v['count']:>6} {v['mass_kg']:>12.6g} {v['radius_m']:>12.6g}")
-    print("\nthreads (Table 7)        inner        corner")
+    print("\nthreads (Table 7)" + "".join(f"{label:>13}" for label in threads))
     rows = [("l_0 [m]", "rest_length_m"), ("r [m]", "radius_m"),
             ("k_a [N/m]", "k_a_N_per_m"), ("c_a [N s/m]", "c_a_Ns_per_m"),
             ("k_t [N/m]", "k_t_N_per_m"), ("c_t [N s/m]", "c_t_Ns_per_m"),
             ("k_b [N m/rad]", "k_b_Nm_per_rad"), ("c_b [N m s/rad]", "c_b_Nms_per_rad"),
             ("T_break [N]", "breaking_tension_N")]
     for label, key in rows:
-        print(f"{label:<18}{threads['inner'][key]:>13.6g} {threads['corner'][key]:>13.6g}")
+        print(f"{label:<17}" + "".join(f"{t[key]:>13.6g}" for t in threads.values()))
     print("\nbreaking tension ([strength]; a knot efficiency on net and corner threads): "
           + ", ".join(f"{name} {value:.6g} N" for name, value in strength.items()))
-    print("\ncontact pair (Tables 5-6)        k_c [1e9 N/m]   c_c [N s/m]")
+    if contact:
+        print("\ncontact pair (Tables 5-6)        k_c [1e9 N/m]   c_c [N s/m]")
     for pair, v in contact.items():
         print(f"{pair:<33}{v['k_c_N_per_m'] / 1e9:>13.4f} {v['c_c_Ns_per_m']:>13.2f}")
     if pybullet_fit:
