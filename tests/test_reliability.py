@@ -173,21 +173,21 @@ def test_oversized_recording_refused_up_front(tmp_path, capsys):
 
 
 def test_net_too_large_for_memory_refused_before_it_is_built(tmp_path, capsys, monkeypatch):
-    # Reference: builder.BYTES_PER_NODE against the machine's memory: 400 million nodes need
-    # about 1.2 TB. Refused in one line by every command that builds a model (params has no
+    # Reference: builder.BYTES_PER_NODE against the machine's memory: a million nodes a side
+    # (1e12 nodes) need about 3 PB, more than any machine has. Refused in one line by every command that builds a model (params has no
     # recording to size), and by the API, before any array is allocated.
     from bulletnet.model import builder
 
     monkeypatch.chdir(tmp_path)
-    big = ["--set", "net.nodes_per_side=20000"]
+    big = ["--set", "net.nodes_per_side=1000000"]
     for command in (["params", "deployment", *big],
                     ["run", "deployment", *big, "--force", "--out", str(tmp_path / "x.h5")]):
         assert main(command) == 2
         err = capsys.readouterr().err
-        assert "400000000 nodes" in err and "GB" in err and err.count("\n") == 1, err
+        assert "1000000000000 nodes" in err and "GB" in err and err.count("\n") == 1, err
     assert not list(tmp_path.iterdir())
     with pytest.raises(ScenarioError, match="lower net.nodes_per_side"):
-        builder.build_model(bn.load_scenario("capture", {"net.nodes_per_side": 20000}))
+        builder.build_model(bn.load_scenario("capture", {"net.nodes_per_side": 1000000}))
 
 
 # ---- random input ----------------------------------------------------------------------------
