@@ -174,8 +174,9 @@ def test_oversized_recording_refused_up_front(tmp_path, capsys):
 
 def test_net_too_large_for_memory_refused_before_it_is_built(tmp_path, capsys, monkeypatch):
     # Reference: builder.BYTES_PER_NODE against the machine's memory: a million nodes a side
-    # (1e12 nodes) need about 3 PB, more than any machine has. Refused in one line by every command that builds a model (params has no
-    # recording to size), and by the API, before any array is allocated.
+    # (1e12 nodes) need about 3 PB, more than any machine has. Refused in one line by every
+    # command that builds a model (params has no recording to size), and by the API, before
+    # any array is allocated.
     from bulletnet.model import builder
 
     monkeypatch.chdir(tmp_path)

@@ -49,7 +49,7 @@ class FastEngine(Engine):
         contact stage reads, is the grid's rows)."""
         if use_grid:  # the grid threads' running maxima in rows laid out as the grid's
             self.peaks = peak_arrays(model.thread_count, model.cable_count,
-                                     self.grid.th.shape[1])
+                                     self.grid.peak_rows)
             self._peak_columns = grid_kernels.peak_columns(self.grid, model.pairs)
 
     def _scale_damping(self, factor: np.ndarray) -> None:

@@ -45,11 +45,16 @@ class PeakArrays(NamedTuple):
     (2, W); (2, 0) on the pair list."""
 
 
-def peak_arrays(threads: int, cables: int, width: int = 0) -> PeakArrays:
-    """Zeroed peak arrays of ``threads`` threads and ``cables`` cables, with grid rows of
-    ``width`` columns (0: the pair list)."""
-    return PeakArrays(thread=np.zeros(threads), cable=np.zeros(cables),
-                      rows=np.zeros((2, width)))
+def peak_arrays(threads: int, cables: int, rows: np.ndarray | None = None) -> PeakArrays:
+    """Zeroed peak arrays of ``threads`` threads and ``cables`` cables, keeping the grid
+    threads' maxima in ``rows`` (2, W), zeroed here: the grid's own
+    (:attr:`bulletnet.solver.grid.Grid.peak_rows`, carved with its other rows, so that their
+    place relative to the T e rows the peaks pass reads is the same in every run); None: the
+    pair list, (2, 0)."""
+    if rows is None:
+        rows = np.zeros((2, 0))
+    rows[:] = 0.0
+    return PeakArrays(thread=np.zeros(threads), cable=np.zeros(cables), rows=rows)
 
 
 def reset(peaks: PeakArrays) -> None:

@@ -166,6 +166,13 @@ class Grid(NamedTuple):
     [N m] (3), torque on node i [N m] (3), shape (9, Ns + Ns^2)."""
     bv: np.ndarray
     """The same for thread v(i), shape (9, Ns + Ns^2)."""
+    peak_rows: np.ndarray
+    """Each grid thread's running maximum of its squared |T e| [N^2], h(i) in row 0 and v(i)
+    in row 1 at column Ns + i, shape (2, Ns + Ns^2) (the peaks' rows,
+    :attr:`bulletnet.kernels.peaks.PeakArrays.rows`: carved here with the rows the peaks
+    pass reads, so that their place relative to them holds from run to run; allocated apart,
+    the heap's placement moved the plain deployment's step between 0.55 and 0.96 us,
+    docs/speed.md)."""
     cables: CableArrays | None
     """The closing cables (pair-list kernels on the views); None without."""
     orbit: OrbitArrays | None = None
@@ -245,10 +252,10 @@ def build(model: NetModel, cables: CableArrays | None = None,
     length = _rows(max(count, h_count + 1, v_count + ns))
     wide = ns + length
     (h, v, masses, x, vel, dv, base, bend, other, th, tv, eh, ev, blocks, wh, wv, cg, block_inv,
-     o_axis, bh, bv, quat, omega) = _carve(
+     o_axis, bh, bv, quat, omega, peak_rows) = _carve(
         [(10, h_count), (10, v_count), (2, length)] + [(3, length)] * 6 + [(3, wide)] * 4
         + [(4, wide), (3, wide), (3, wide), (4, 3, length), (9, length), (q, 3), (9, wide),
-           (9, wide), (4, length), (3, length)])
+           (9, wide), (4, length), (3, length), (2, wide)])
     h[0] = v[0] = np.inf
     for p, (i, j) in enumerate(pairs[:inner]):
         (h if j == i + 1 else v)[:, i] = per_thread[:, p]
@@ -261,7 +268,7 @@ def build(model: NetModel, cables: CableArrays | None = None,
         q=quat, w=omega, dv=dv, base=base, bend=bend, other=other, th=th, tv=tv, eh=eh, ev=ev,
         blocks=blocks, wh=wh, wv=wv, cg=cg, block_inv=block_inv, o_tension=np.zeros(q),
         o_along=np.zeros(q), o_across=np.zeros(q), o_axis=o_axis, o_bend=o[3:7].copy(),
-        o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q), bh=bh, bv=bv,
+        o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q), bh=bh, bv=bv, peak_rows=peak_rows,
         cables=cables, orbit=orbit,
         o_rest_rate=None if rest_rate is None else rest_rate[inner:].copy())
 
