@@ -112,12 +112,11 @@ def _others(g, views, dt, calls):
         G._other_threads(g, views, dt, False)
 
 
-def working_set(g, peaks) -> int:
-    """Bytes of the rows a free step reads or writes: x, v, base (where it is read), other,
-    1/m, the threads' T e and parameters, the running maxima."""
+def working_set(g, peaks, base) -> int:
+    """Bytes of the rows a free step reads or writes: x, v, ``base`` (where it is read: not
+    None), other, 1/m, the threads' T e and parameters, the running maxima."""
     rows = (g.x, g.v, g.other, g.inv_mass, g.th, g.tv, g.h_rest, g.h_k, g.h_c, g.v_rest,
             g.v_k, g.v_c, peaks.rows)
-    base = G.base_rows(g)
     return sum(r.nbytes for r in rows) + (0 if base is None else base.nbytes)
 
 
@@ -134,6 +133,7 @@ class StepParts(At):
         G.load(g, state, e.base_forces())
         x0, v0 = g.x.copy(), g.v.copy()
         loop = G.free_steps(False)
+        base = G.base_rows(g)  # as the run passes it
 
         def fresh(call):  # every timed loop starts from the snapshot (the steps move it)
             def timed_call(calls):
@@ -143,9 +143,9 @@ class StepParts(At):
 
         parts = {
             "step": fresh(lambda k: loop(g, views, k, dt, 0.0, e.work.cg_iterations, peaks,
-                                            G.base_rows(g))),
+                                            base)),
             "stencils": lambda k: _probe(g, 2, k),
-            "node_pass": fresh(lambda k: _node_pass(g, dt, k, G.base_rows(g))),
+            "node_pass": fresh(lambda k: _node_pass(g, dt, k, base)),
             "peaks": lambda k: _peaks(g, peaks, k),
             "other_threads": lambda k: _others(g, views, dt, k),
             "probe_sqrt_reciprocal": lambda k: _probe(g, 0, k),
@@ -153,10 +153,10 @@ class StepParts(At):
         }
         rows = 3 * g.x.shape[1]  # node components in the node pass
         threads = g.h_rest.shape[0] + g.v_rest.shape[0]
-        node_doubles = PASS_BYTES["node_pass"] - (G.base_rows(g) is None)
+        node_doubles = PASS_BYTES["node_pass"] - (base is None)
         traffic = 8 * (threads * (PASS_BYTES["stencils"] + PASS_BYTES["peaks"])
                        + rows * node_doubles)
-        working = working_set(g, peaks)
+        working = working_set(g, peaks, base)
         times = {name: [] for name in parts}
         bounds, bandwidths = [], []
         for _ in range(self.rounds):

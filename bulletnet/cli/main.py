@@ -668,6 +668,7 @@ def cmd_params(args) -> int:
 
     scene = _scene(args)
     model = build_model(scene)
+    beam = scene.scene.kind == "cantilever"  # one element: no corner threads, no contact
     kinds = {}
     for kind in NodeKind:
         nodes = (model.kind == kind).nonzero()[0]
@@ -677,7 +678,8 @@ def cmd_params(args) -> int:
                                         "radius_m": float(model.radius[nodes[0]])}
     threads = {}
     corner = corner_threads(model.pairs, model.kind)
-    for label, index in (("inner", 0), ("corner", corner[-1] if corner.size else 0)):
+    columns = [("inner", 0)] + ([] if beam else [("corner", corner[-1] if corner.size else 0)])
+    for label, index in columns:
         threads[label] = {
             "rest_length_m": float(model.rest_length[index]),
             "radius_m": float(model.thread_radius[index]),
@@ -694,8 +696,8 @@ def cmd_params(args) -> int:
         element_kinds == kind][0]) for kind in np.unique(element_kinds)}
     if model.cable_count:
         strength[ELEMENT_NAMES[ElementKind.CABLE]] = float(model.cable_breaking_tension[0])
-    contact = {f"{a}/{b}": {"k_c_N_per_m": k, "c_c_Ns_per_m": c}
-               for (a, b), (k, c) in contact_table(scene, model).items()}
+    contact = {} if beam else {f"{a}/{b}": {"k_c_N_per_m": k, "c_c_Ns_per_m": c}
+                               for (a, b), (k, c) in contact_table(scene, model).items()}
     pybullet_fit = {}
     if scene.contact.enabled:
         from ..engines.bullet_materials import fit
@@ -703,13 +705,9 @@ def cmd_params(args) -> int:
         mat = fit(scene, model, bool(scene.debris.asset))
         pybullet_fit = {pair: {"k_c_rel_error": e[0], "c_c_rel_error": e[1],
                                "mu_k_rel_error": e[2]} for pair, e in mat.errors.items()}
-    beam = scene.scene.kind == "cantilever"
     shape = ({"beam_length_m": scene.beam.length} if beam else
              {"nodes_per_side": model.nodes_per_side,
               "side_length_m": (model.nodes_per_side - 1) * scene.net.mesh_length})
-    if beam:  # one element, no corner threads, no contact
-        del threads["corner"]
-        contact = {}
     doc = {
         "scene": scene.scene.name,
         **shape,
