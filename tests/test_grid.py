@@ -77,6 +77,19 @@ def test_grid_applies_to_nets_only():
     assert grid.applies(bn.build_model(small_scene()))
 
 
+@pytest.mark.parametrize("ns", [2, 8, 11, 21])
+def test_thread_rows_start_cache_lines(ns):
+    # not physics: the layout the stencils' speed rests on (docs/speed.md). Thread t's column
+    # Ns + t begins a 64-byte line in every row of every thread quantity, so the stencils'
+    # and the running maxima's vector stores never split a line; node rows begin lines too
+    g = grid.build(bn.build_model(small_scene(**{"net.nodes_per_side": ns})))
+    for rows in (g.th, g.tv, g.eh, g.ev, g.blocks, g.wh, g.wv, g.bh, g.bv, g.peak_rows):
+        assert rows.shape[1] % 8 == 0
+        assert all(rows[r, ns:].ctypes.data % grid.ALIGN == 0 for r in range(rows.shape[0]))
+    for rows in (g.x, g.v, g.other, g.base, g.bend, g.dv):
+        assert all(rows[r].ctypes.data % grid.ALIGN == 0 for r in range(3))
+
+
 @pytest.mark.parametrize(("integrator", "dt"), [("symplectic_euler", 1e-6),
                                                 ("implicit_euler", 3e-5),
                                                 ("exponential_euler", 5e-6)])

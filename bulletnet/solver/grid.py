@@ -71,7 +71,9 @@ class Grid(NamedTuple):
     """The grid threads' parameters and the structure-of-arrays state and scratch of a net of
     Ns x Ns nodes, N nodes in all (the net, then the corner masses and any other nodes), and
     Q other (pair-list) threads. Rows of node quantities have length L >= N, a multiple of 8
-    long enough for every padding thread's far node."""
+    long enough for every padding thread's far node; rows of thread quantities, length W, Ns +
+    L rounded up to a multiple of 8, hold thread t at column Ns + t, which begins a cache
+    line (:func:`build`)."""
 
     ns: int
     """Ns, nodes per side [-]."""
@@ -129,20 +131,20 @@ class Grid(NamedTuple):
     other: np.ndarray
     """Forces of the other threads [N], shape (3, L)."""
     th: np.ndarray
-    """T e of thread h(i) at column Ns + i [N], shape (3, Ns + Ns^2)."""
+    """T e of thread h(i) at column Ns + i [N], shape (3, W)."""
     tv: np.ndarray
-    """T e of thread v(i) at column Ns + i [N], shape (3, Ns + Ns^2)."""
+    """T e of thread v(i) at column Ns + i [N], shape (3, W)."""
     eh: np.ndarray
-    """Unit direction of h(i) at column Ns + i [-], shape (3, Ns + Ns^2) (implicit Euler)."""
+    """Unit direction of h(i) at column Ns + i [-], shape (3, W) (implicit Euler)."""
     ev: np.ndarray
-    """Unit direction of v(i) [-], shape (3, Ns + Ns^2) (implicit Euler)."""
+    """Unit direction of v(i) [-], shape (3, W) (implicit Euler)."""
     blocks: np.ndarray
-    """along, across of h(i), then of v(i), at column Ns + i [kg], shape (4, Ns + Ns^2):
+    """along, across of h(i), then of v(i), at column Ns + i [kg], shape (4, W):
     the implicit-Euler block along - across on e e^T plus across on the identity."""
     wh: np.ndarray
-    """A block of h(i) times its nodes' difference [kg m/s], shape (3, Ns + Ns^2)."""
+    """A block of h(i) times its nodes' difference [kg m/s], shape (3, W)."""
     wv: np.ndarray
-    """The same for v(i), shape (3, Ns + Ns^2)."""
+    """The same for v(i), shape (3, W)."""
     cg: np.ndarray
     """CG vectors r, z, d, A d [kg m/s, m/s, m/s, kg m/s], shape (4, 3, L)."""
     block_inv: np.ndarray
@@ -163,12 +165,12 @@ class Grid(NamedTuple):
     """Their shear force magnitude [N], shape (Q,)."""
     bh: np.ndarray
     """Bending of thread h(i) at column Ns + i: force on node i [N] (3), r x that force
-    [N m] (3), torque on node i [N m] (3), shape (9, Ns + Ns^2)."""
+    [N m] (3), torque on node i [N m] (3), shape (9, W)."""
     bv: np.ndarray
-    """The same for thread v(i), shape (9, Ns + Ns^2)."""
+    """The same for thread v(i), shape (9, W)."""
     peak_rows: np.ndarray
     """Each grid thread's running maximum of its squared |T e| [N^2], h(i) in row 0 and v(i)
-    in row 1 at column Ns + i, shape (2, Ns + Ns^2) (the peaks' rows,
+    in row 1 at column Ns + i, shape (2, W) (the peaks' rows,
     :attr:`bulletnet.kernels.peaks.PeakArrays.rows`: carved here with the rows the peaks
     pass reads, so that their place relative to them holds from run to run; allocated apart,
     the heap's placement moved the plain deployment's step between 0.55 and 0.96 us,
@@ -220,15 +222,17 @@ def _rows(total: int) -> int:
     return -(-total // 8) * 8
 
 
-def _carve(shapes: list[tuple[int, ...]]) -> list[np.ndarray]:
-    """Zeroed float64 arrays of ``shapes``, each starting on an :data:`ALIGN` boundary, all in
-    one allocation (their relative placement then does not change from run to run)."""
-    sizes = [_rows(int(np.prod(s))) for s in shapes]
+def _carve(shapes: list[tuple[int, ...]], leads: list[int]) -> list[np.ndarray]:
+    """Zeroed float64 arrays of ``shapes``, each starting ``leads`` doubles after an
+    :data:`ALIGN` boundary, all in one allocation (their relative placement then does not
+    change from run to run)."""
+    sizes = [_rows(int(np.prod(s)) + lead) for s, lead in zip(shapes, leads, strict=True)]
     buffer = np.zeros(sum(sizes) + ALIGN // 8)
     start = (-buffer.ctypes.data % ALIGN) // 8
     out = []
-    for shape, size in zip(shapes, sizes, strict=True):
-        out.append(buffer[start:start + int(np.prod(shape))].reshape(shape))
+    for shape, size, lead in zip(shapes, sizes, leads, strict=True):
+        begin = start + lead
+        out.append(buffer[begin:begin + int(np.prod(shape))].reshape(shape))
         start += size
     return out
 
@@ -250,12 +254,18 @@ def build(model: NetModel, cables: CableArrays | None = None,
     # with threads that are never taut, as is the thread at a row's end: rest +inf, all else 0
     h_count, v_count = _rows(max(n - 1, 0)), _rows(n - ns)
     length = _rows(max(count, h_count + 1, v_count + ns))
-    wide = ns + length
+    # the thread rows ("wide", column Ns + t for thread t) start Ns mod 8 doubles short of a
+    # cache line and are whole lines long, so that column Ns of every row is line-aligned:
+    # the stencils' and the peaks' vector stores then never split a line (the plain
+    # deployment's step 0.55 -> 0.51 us, docs/speed.md)
+    wide, lead = _rows(ns + length), -ns % 8
+    shapes = ([(10, h_count), (10, v_count), (2, length)] + [(3, length)] * 6
+              + [(3, wide)] * 4 + [(4, wide), (3, wide), (3, wide), (4, 3, length),
+                                   (9, length), (q, 3), (9, wide), (9, wide), (4, length),
+                                   (3, length), (2, wide)])
     (h, v, masses, x, vel, dv, base, bend, other, th, tv, eh, ev, blocks, wh, wv, cg, block_inv,
      o_axis, bh, bv, quat, omega, peak_rows) = _carve(
-        [(10, h_count), (10, v_count), (2, length)] + [(3, length)] * 6 + [(3, wide)] * 4
-        + [(4, wide), (3, wide), (3, wide), (4, 3, length), (9, length), (q, 3), (9, wide),
-           (9, wide), (4, length), (3, length), (2, wide)])
+        shapes, [lead if s[-1] == wide else 0 for s in shapes])
     h[0] = v[0] = np.inf
     for p, (i, j) in enumerate(pairs[:inner]):
         (h if j == i + 1 else v)[:, i] = per_thread[:, p]
@@ -347,7 +357,7 @@ def _store_tension(tension_e, col, tension, ex, ey, ez):
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def _tension_stencil(x, v, off, rest, k, c, tension_e, count, ns):
     """Eq. 3 for threads t < ``count`` from node t to node t + ``off``: T e [N] into
-    column Ns + t of ``tension_e`` (3, Ns + Ns^2); x [m] and v [m/s] are (3, L) rows."""
+    column Ns + t of ``tension_e`` (3, W); x [m] and v [m/s] are (3, L) rows."""
     for t in range(count):
         tension, ex, ey, ez, _ = _row_tension(x, v, t, t + off, rest, k, c)
         _store_tension(tension_e, t + ns, tension, ex, ey, ez)
@@ -787,7 +797,7 @@ def _cut(k, c, bend, i):
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def _square_peaks(tension_e, rows, row, count, ns):
     """rows[row, Ns + t] <- the larger of it and |T e|^2 [N^2] of column Ns + t of
-    ``tension_e`` (3, Ns + Ns^2), for t < ``count``."""
+    ``tension_e`` (3, W), for t < ``count``."""
     for t in range(count):
         col = t + ns
         square = tension_e[0, col] * tension_e[0, col] + tension_e[1, col] * tension_e[1, col] \
