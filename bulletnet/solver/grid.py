@@ -71,9 +71,9 @@ class Grid(NamedTuple):
     """The grid threads' parameters and the structure-of-arrays state and scratch of a net of
     Ns x Ns nodes, N nodes in all (the net, then the corner masses and any other nodes), and
     Q other (pair-list) threads. Rows of node quantities have length L >= N, a multiple of 8
-    long enough for every padding thread's far node; rows of thread quantities, length W, Ns +
-    L rounded up to a multiple of 8, hold thread t at column Ns + t, which begins a cache
-    line (:func:`build`)."""
+    long enough for every padding thread's far node; rows of thread quantities, length W (Ns +
+    L rounded up to a multiple of 8), hold thread t at column Ns + t, and column Ns begins a
+    cache line in each of them (:func:`build`)."""
 
     ns: int
     """Ns, nodes per side [-]."""
