@@ -15,7 +15,14 @@ that state (best of 5 loops of 200 000 calls each, in ``--rounds`` interleaved r
 3. the bounds beside them: the sqrt/division bound (``common.sqrt_division_bound``, ns a
    thread) and the bandwidth of a triad over arrays as large as the rows the step touches
    (its working set, :func:`working_set`), which with the bytes the step's passes read and
-   write (counted in :data:`PASS_BYTES`) gives the step's traffic floor.
+   write (counted in :data:`PASS_BYTES`) gives the step's traffic floor;
+4. three passes' floors: the stencils' (the larger of the sqrt/division bound for their
+   threads and their traffic), the running maxima's (their traffic) and the corner threads'
+   (the bound's loop over as few values as there are corner threads, which runs scalar);
+   and the step with those three at their floors and the node pass as measured
+   (``step_at_floors_us``). The node pass has no floor here: with eight loads to two stores
+   it moves its bytes faster than the triad (two to one) measures, so the triad's floor
+   would lie above it.
 
 Also the frozen yardstick, once a round (its step: its wall time over its 3e6 steps).
 Writes ``OUT/grid_step.json``:
@@ -157,12 +164,14 @@ class StepParts(At):
         traffic = 8 * (threads * (PASS_BYTES["stencils"] + PASS_BYTES["peaks"])
                        + rows * node_doubles)
         working = working_set(g, peaks, base)
+        corners = g.o_pairs.shape[0]
         times = {name: [] for name in parts}
-        bounds, bandwidths = [], []
+        bounds, corner_bounds, bandwidths = [], [], []
         for _ in range(self.rounds):
             self.yard.time()
             bounds.append(1e-3 * sqrt_division_bound(threads=DEPLOYMENT_THREADS)
                           * DEPLOYMENT_THREADS)
+            corner_bounds.append(1e-3 * sqrt_division_bound(threads=corners) * corners)
             bandwidth, arrays = triad_bandwidth(working, 256, CALLS // 10)
             bandwidths.append(bandwidth)
             for name, call in parts.items():
@@ -172,6 +181,15 @@ class StepParts(At):
         bound = statistics.median(bounds)
         bandwidth = statistics.median(bandwidths)
         plain = 1e6 * statistics.median(self.yard.walls) / 3e6
+
+        def moved(doubles):  # [us] for the bytes of ``doubles`` float64 at the bandwidth
+            return 8 * doubles / bandwidth * 1e-3
+
+        floors = {"stencils": max(bound / DEPLOYMENT_THREADS * threads,
+                                  moved(threads * PASS_BYTES["stencils"])),
+                  "peaks": moved(threads * PASS_BYTES["peaks"]),
+                  "other_threads": statistics.median(corner_bounds)}
+        at_floors = sum(floors.values()) + us["node_pass"]
         return {
             "t_s": state.time, "threads": threads, "node_rows": rows,
             "us": us, "us_all": times,
@@ -182,6 +200,8 @@ class StepParts(At):
             "step_bytes": traffic, "working_set_bytes": working,
             "triad_arrays_bytes": arrays, "bandwidths_GB_s_all": bandwidths,
             "bandwidth_GB_s": bandwidth, "traffic_floor_us": traffic / bandwidth * 1e-3,
+            "corner_bound_us_all": corner_bounds, "floor_us": floors,
+            "step_at_floors_us": at_floors, "step_at_floors_x_bound": at_floors / bound,
             "target_us": 2.5 * bound}
 
 
@@ -201,7 +221,11 @@ def main() -> int:
     (out / "grid_step.json").write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     t = parts.taken
     for name, value in t["us"].items():
-        print(f"{name:24s} {value:7.3f} us  {t['x_bound'][name]:5.2f} x bound")
+        floor = t["floor_us"].get(name)
+        print(f"{name:24s} {value:7.3f} us  {t['x_bound'][name]:5.2f} x bound"
+              + ("" if floor is None else f"   floor {floor:.3f} us"))
+    print(f"the step with three passes at their floors {t['step_at_floors_us']:.3f} us, "
+          f"{t['step_at_floors_x_bound']:.2f} x bound")
     print(f"bound {t['sqrt_division_bound_us_per_step']:.3f} us, traffic floor "
           f"{t['traffic_floor_us']:.3f} us ({t['bandwidth_GB_s']:.0f} GB/s over "
           f"{t['step_bytes']} bytes), target {t['target_us']:.3f} us, plain loop "
