@@ -9,6 +9,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..kernels.axial import thread_tensions
 from ..kernels.breakage import BreakageArrays, breaking_arrays
 from ..kernels.cable import CableArrays, cable_arrays
 from ..kernels.orbit import OrbitArrays, orbit_arrays
@@ -329,20 +330,20 @@ class Engine(ABC):
 
     def loads_calls(self, state: NetState) -> list[tuple]:
         """The compiled calls :meth:`thread_loads` makes at ``state``, as (dispatcher,
-        arguments): the forces alone, as a symplectic step takes them (not through
-        ``increment``, whose implicit branch would be compiled once more for these arrays'
-        layout: 10 s), into a workspace of their own."""
+        arguments), into a workspace of their own: each thread's tension
+        (:func:`~bulletnet.kernels.axial.thread_tensions`) and, with bending, the bending
+        springs afresh for the shear. Nothing the run reads is written (the cables' kernel,
+        whose tension and damper force the winches read at the next step, is not called),
+        and no force is summed, so a run's first frame compiles two small kernels."""
         work, model = self._loads_work, self.arrays
-        if model.cables is not None:
-            # the cables' kernel writes the tension, length and damper force it evaluates,
-            # which the winches read at the next step: a frame's loads must not change the run
-            model = model._replace(cables=type(model.cables)(*(a.copy() for a in model.cables)))
+        calls = [(thread_tensions, (state.position, state.velocity, model.pairs, model.rest,
+                                    model.rest_rate, model.k_a, model.c_a, model.bilateral,
+                                    work.tension))]
         quat, omega = self.rotations(state)
-        return [(integrators.external_forces,
-                 (state.position, state.velocity, quat, omega, model, work, self.base_forces(),
-                  1.0 if self.bending else 0.0, False)),
-                (integrators.symplectic_increment,
-                 (state.position, state.velocity, model, work, 1.0))]
+        if quat is not None:
+            calls.append((integrators.evaluate_bending,
+                          (state.position, state.velocity, quat, omega, model, work)))
+        return calls
 
     def stats(self) -> dict:
         """Counters of the run so far (steps, solver iterations; with contact, the overlap

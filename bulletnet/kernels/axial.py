@@ -80,6 +80,15 @@ def thread_tension(p, pos, vel, pairs, rest, rest_rate, k, c, bilateral):
 
 
 @nb.njit(cache=True, error_model="numpy")
+def thread_tensions(pos, vel, pairs, rest, rest_rate, k, c, bilateral, tension):
+    """Every thread's tension [N] into ``tension`` (P,) (:func:`thread_tension`) and nothing
+    else: the values :func:`axial_forces` writes there at the same state (the same
+    operations; a slack thread's 0.0 from the law instead of its shortcut)."""
+    for p in range(pairs.shape[0]):
+        tension[p] = thread_tension(p, pos, vel, pairs, rest, rest_rate, k, c, bilateral)[0]
+
+
+@nb.njit(cache=True, error_model="numpy")
 def axial_forces(pos, vel, pairs, rest, rest_rate, k, c, bilateral, force, tension):
     """Add every thread's force [N] into ``force`` (N, 3); write tensions [N] into ``tension``
     (P,), from the threads' rest lengths [m] and their rates [m/s] (None: zero), stiffness
