@@ -12,7 +12,7 @@ import pytest
 
 import bulletnet as bn
 from bulletnet.engines import make_engine
-from bulletnet.kernels.axial import axial_energy, axial_forces
+from bulletnet.kernels.axial import axial_energy, axial_forces, thread_tensions
 from bulletnet.model.net import NetModel
 from bulletnet.model.state import NetState
 from bulletnet.solver import integrators
@@ -91,6 +91,29 @@ def test_force_is_minus_energy_gradient():
                                          model.axial_stiffness)) / (2 * h)
     scale = np.abs(force).max()
     np.testing.assert_allclose(force, -grad, atol=1e-6 * scale)
+
+
+@pytest.mark.parametrize("rates", [False, True])
+def test_recorded_tensions_are_the_steps(rates):
+    # Reference: the step's own force kernel. A frame records each thread's tension from the
+    # tension law alone (thread_tensions); it must be the tension axial_forces computes and
+    # applies at the same state, bit for bit, taut, slack and closing threads alike (a
+    # jittered net with random velocities: about half its threads slack), with and without
+    # rest-length rates.
+    s = small_scene()
+    model = bn.build_model(s)
+    rng = np.random.default_rng(3)
+    pos = bn.initial_state(s, model).position * 4.4 + rng.normal(0, 0.05, (model.node_count, 3))
+    vel = rng.normal(0, 2.0, pos.shape)
+    rate = rng.normal(0, 0.5, model.thread_count) if rates else None
+    args = (model.pairs, model.rest_length, rate, model.axial_stiffness, model.axial_damping,
+            model.bilateral)
+    force, applied, recorded = np.zeros_like(pos), np.zeros(model.thread_count), \
+        np.full(model.thread_count, np.nan)
+    axial_forces(pos, vel, *args, force, applied)
+    thread_tensions(pos, vel, *args, recorded)
+    assert 0 < np.count_nonzero(applied) < model.thread_count
+    np.testing.assert_array_equal(recorded, applied)
 
 
 @pytest.mark.parametrize("method", ["symplectic_euler", "implicit_euler"])
