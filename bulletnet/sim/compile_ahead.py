@@ -7,9 +7,9 @@ calls, holding the interpreter, so one process compiles them one after the other
 :func:`compile_ahead` has a second process compile the groups other than the step and the
 frame's (the thread loads each recorded frame computes) that numba's cache lacks (into the
 same folder: :mod:`bulletnet.common.kernel_cache`) while this one compiles those two; the
-compiled loop then loads them all. (The split balances the two processes: the capture's step
-and frame kernels took 10.0 and 2.2 s here, its contact stage 12 s there, and its bending
-springs 4.1 s more.) If the cache holds those groups,
+compiled loop then loads them all. (The split roughly balances the two processes: the
+capture with bending's step and frame kernels took 11.6 and 2.1 s here, its bending springs
+and contact stage 4.8 and 13.4 s there; docs/development.md.) If the cache holds those groups,
 or the second process fails, nothing changes but the time: each process compiles exactly
 what a run would (the same kernels for the same argument types), so the results are the
 same.
