@@ -198,14 +198,29 @@ def implicit_normal_step(s, u, a, k, c, m, dt):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def friction_impulse(speed, normal_impulse, contact_time, m, slip, mu_s, mu_k):
-    """Magnitude [N s] of the friction impulse against a tangential slip ``speed`` [m/s]
-    (Eq. 12): the viscous stick over ``contact_time`` [s] with the inverse slip coefficient
-    1 / ``slip`` [N s/m] if it stays within mu_s times ``normal_impulse`` [N s], else mu_k
-    times it, at most what stops the slip."""
-    if speed <= 0.0 or contact_time <= 0.0:
-        return 0.0
-    stick = m * speed * -math.expm1(-contact_time / (m * slip))
+def stick_fraction(contact_time, m, slip):
+    """The share [-] of a slip's momentum that the viscous stick of Eq. 12 takes over
+    ``contact_time`` [s], mass ``m`` [kg] and slip coefficient ``slip`` [s/kg]:
+    1 - exp(-t / (m s))."""
+    return -math.expm1(-contact_time / (m * slip))
+
+
+@nb.njit(cache=True, error_model="numpy")
+def limited_friction(stick, normal_impulse, m, speed, mu_s, mu_k):
+    """Magnitude [N s] of the friction impulse of Eq. 12 whose viscous stick would be
+    ``stick`` [N s]: the stick if it stays within mu_s times ``normal_impulse`` [N s], else
+    mu_k times it, at most what stops the slip ``speed`` [m/s] of mass ``m`` [kg]."""
     if stick <= mu_s * normal_impulse:
         return stick
     return min(mu_k * normal_impulse, m * speed)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def friction_impulse(speed, normal_impulse, contact_time, m, slip, mu_s, mu_k):
+    """Magnitude [N s] of the friction impulse against a tangential slip ``speed`` [m/s]
+    (Eq. 12): the viscous stick over ``contact_time`` [s] with the inverse slip coefficient
+    1 / ``slip`` [N s/m] (:func:`stick_fraction`), limited by :func:`limited_friction`."""
+    if speed <= 0.0 or contact_time <= 0.0:
+        return 0.0
+    return limited_friction(m * speed * stick_fraction(contact_time, m, slip),
+                            normal_impulse, m, speed, mu_s, mu_k)

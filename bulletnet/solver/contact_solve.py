@@ -4,11 +4,11 @@ for nets whose contacts are stacked (layers of net pressed on the debris, ring n
 by the closing cables).
 
 The sequential stage (:func:`bulletnet.solver.contact_stage.contact_stage`) solves each
-contact once a step from its start gap and velocity, with the other contacts held: in a stack
-the next contact's correction moves a node the last one has just placed, the step's end
-gaps are not the ones the law predicted, and the next step removes the difference by moving
-nodes (an overlap projection), which does work against the threads' and cables' pull that no
-force does. Here the backward-Euler law of Eq. 6 (:func:`~bulletnet.kernels.contact.
+contact once a step from its start gap and velocity, with the other contacts held: in a
+stack the next contact's correction moves a node the last one has just placed, the step's
+end gaps are not the ones the law predicted, and the next step removes the difference by
+moving nodes (an overlap projection), which does work against the threads' and cables' pull
+that no force does. Here the backward-Euler law of Eq. 6 (:func:`~bulletnet.kernels.contact.
 implicit_normal_step`: the impulse ``dt F`` with F = -k_c s_1 - c_c u_1 at the step's end,
 acting if F > 0 and s_1 < 0) and the regularized Coulomb friction of Eq. 12
 (:func:`~bulletnet.kernels.contact.friction_impulse`, contact time the step) are imposed on
@@ -16,9 +16,12 @@ all contacts at once: each sweep updates every contact's accumulated impulses fr
 velocities the others' current impulses leave (the single-contact law solved for its own
 impulse), until no sweep changes any contact's end gap by more than ``contact.tolerance``
 [m] (``contact.sweeps`` at most). The impulses start from the last step's (warm start), so
-that a resting stack takes a few sweeps. A node-node impulse acts equally and oppositely on
-its two nodes (clamped nodes do not move); debris impulses are summed, force and moment, for
-its rigid body. Positions follow the velocities (x_1 = x_0 + dt v_1), as in the free step.
+that a resting stack takes a few sweeps. A sweep passes over a contact whose nodes no
+impulse has moved since it was last solved, and a contact's friction that slid stays sliding
+for the rest of the step's sweeps unless mu_k would stop it (:func:`_sweep`). A node-node
+impulse acts equally and oppositely on its two nodes (clamped nodes do not move); debris
+impulses are summed, force and moment, for its rigid body. Positions follow the velocities
+(x_1 = x_0 + dt v_1), as in the free step.
 
 Every pair the Verlet list holds within ``contact.skin`` and every node within reach of the
 debris is a candidate; the sweeps run over the contacts that touch or close within the step
@@ -41,13 +44,14 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from ..kernels.contact import friction_impulse
+from ..kernels.contact import limited_friction, stick_fraction
 from .debris_gap import debris_pose, start_gap, surface_speed
 
-CONTACT_COLUMNS = 8
+CONTACT_COLUMNS = 9
 """Columns of a contact's law row: reduced mass [kg], stiffness [N/m], damping [N s/m], mu_s,
 mu_k [-], the inverse masses of its two nodes [1/kg] (node i's 0 for the debris), gap at
-the start of the step with its offset [m]."""
+the start of the step with its offset [m], the share of a slip's momentum the viscous
+stick takes over the step [-] (:func:`~bulletnet.kernels.contact.stick_fraction`)."""
 
 
 class SolveArrays(NamedTuple):
@@ -69,9 +73,22 @@ class SolveArrays(NamedTuple):
     lever: np.ndarray
     """Contact point from the debris' centre of mass [m], shape (K, 3)."""
     law: np.ndarray
-    """Each contact's law (:data:`CONTACT_COLUMNS`), shape (K, 8)."""
+    """Each contact's law (:data:`CONTACT_COLUMNS`), shape (K, 9)."""
     active: np.ndarray
     """Whether the sweeps update the contact [-], shape (K,), bool."""
+    order: np.ndarray
+    """The active contacts, in slot order [-], shape (K,), int64 (the first of them)."""
+    sliding: np.ndarray
+    """Whether the contact's friction slid when the sweeps last solved it in this step [-],
+    shape (K,), bool."""
+    solved_at: np.ndarray
+    """The clock when the sweeps last solved the contact (-1: not yet in this step) [-],
+    shape (K,), int64."""
+    moved_at: np.ndarray
+    """The clock when an impulse last changed the node's velocity [-], shape (N,), int64."""
+    clock: np.ndarray
+    """Contacts solved so far, the clock of ``solved_at`` and ``moved_at`` [-], shape (1,),
+    int64."""
     impulse: np.ndarray
     """Accumulated normal impulse [N s], shape (K,)."""
     friction: np.ndarray
@@ -102,6 +119,9 @@ def solve_arrays(tolerance: float, sweeps: int, nodes: int, pairs: int) -> Solve
         node=np.zeros((slots, 2), dtype=np.int64), source=np.zeros(slots, dtype=np.int64),
         normal=np.zeros((slots, 3)), surface=np.zeros((slots, 3)), lever=np.zeros((slots, 3)),
         law=np.zeros((slots, CONTACT_COLUMNS)), active=np.zeros(slots, dtype=np.bool_),
+        order=np.zeros(slots, dtype=np.int64), sliding=np.zeros(slots, dtype=np.bool_),
+        solved_at=np.zeros(slots, dtype=np.int64), moved_at=np.zeros(nodes, dtype=np.int64),
+        clock=np.zeros(1, dtype=np.int64),
         impulse=np.zeros(slots), friction=np.zeros((slots, 3)),
         pair_warm=np.zeros((pairs, 4)), debris_warm=np.zeros((nodes, 4)),
         pair_offset=np.zeros(pairs), debris_offset=np.zeros(nodes),
@@ -204,13 +224,17 @@ def _absorb(s0, offset, predicted, stats):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _add(solve, c, k, kc, cc, mu_s, mu_k, wi, wj, gap, warm):
+def _add(solve, c, k, kc, cc, mu_s, mu_k, wi, wj, gap, warm, dt, slip):
     """Fill contact slot ``c`` (nodes, normal, surface and lever set by the caller) with its
-    law, and start its impulses from ``warm`` (normal, then friction in the tangent plane)."""
+    law over the step ``dt`` [s] (friction's ``slip`` coefficient [s/kg]), and start its
+    impulses from ``warm`` (normal, then friction in the tangent plane), not yet solved."""
     law = solve.law
-    law[c, 0] = 1.0 / (wi + wj)
+    law[c, 0] = m = 1.0 / (wi + wj)
     law[c, 1], law[c, 2], law[c, 3], law[c, 4] = kc, cc, mu_s, mu_k
     law[c, 5], law[c, 6], law[c, 7] = wi, wj, gap
+    law[c, 8] = stick_fraction(dt, m, slip)
+    solve.sliding[c] = False
+    solve.solved_at[c] = -1
     n = solve.normal
     along = warm[1] * n[c, 0] + warm[2] * n[c, 1] + warm[3] * n[c, 2]
     solve.impulse[c] = warm[0]
@@ -220,9 +244,13 @@ def _add(solve, c, k, kc, cc, mu_s, mu_k, wi, wj, gap, warm):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _apply(pos, vel, i, j, wi, wj, d, dt):
+def _apply(pos, vel, i, j, wi, wj, d, dt, moved_at, now):
     """Impulse ``d`` (3,) [N s] on node j and -d on node i (i < 0: the debris), with the
-    positions following the velocities over the step."""
+    positions following the velocities over the step; both nodes' ``moved_at`` set to
+    ``now``."""
+    moved_at[j] = now
+    if i >= 0:
+        moved_at[i] = now
     for a in range(3):
         vel[j, a] += wj * d[a]
         pos[j, a] += dt * wj * d[a]
@@ -244,16 +272,26 @@ def _relative(vel, solve, c, rel):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _sweep(pos, vel, solve, count, dt, slip, d, rel):
-    """One Gauss-Seidel sweep over the active contacts: each one's normal impulse from the
-    backward-Euler law, then its friction impulse, at the velocities the others leave.
-    Returns the largest change of an end gap the sweep made [m]."""
+def _sweep(pos, vel, solve, active, dt, d, rel):
+    """One Gauss-Seidel sweep over the ``active`` contacts (solve.order's first): each one's
+    normal impulse from the backward-Euler law, then its friction impulse, at the velocities
+    the others leave. A contact neither of whose nodes has moved since it was last solved
+    is left as it is (solving it again would give its impulses again, to round-off).
+    Friction that slid when last solved in this step slides on until mu_k times the normal
+    impulse would stop the slip: with the law's jump from mu_s to mu_k, contacts sharing a
+    node could otherwise flip between sticking and sliding from one sweep to the next and
+    the sweeps not converge. Returns the largest change of an end gap the sweep made [m]."""
     law, n, lam, fr = solve.law, solve.normal, solve.impulse, solve.friction
+    moved_at, solved_at, clock = solve.moved_at, solve.solved_at, solve.clock
     change = 0.0
-    for c in range(count):
-        if not solve.active[c]:
-            continue
+    for b in range(active):
+        c = solve.order[b]
         i, j = solve.node[c, 0], solve.node[c, 1]
+        if solved_at[c] >= moved_at[j] and (i < 0 or solved_at[c] >= moved_at[i]):
+            continue
+        clock[0] += 1
+        now = clock[0]
+        solved_at[c] = now
         m, k, cc, mu_s, mu_k = law[c, 0], law[c, 1], law[c, 2], law[c, 3], law[c, 4]
         wi, wj, gap = law[c, 5], law[c, 6], law[c, 7]
         u_free = _relative(vel, solve, c, rel) - lam[c] / m  # without its own impulse
@@ -265,7 +303,7 @@ def _sweep(pos, vel, solve, count, dt, slip, d, rel):
         if step != 0.0:
             for a in range(3):
                 d[a] = step * n[c, a]
-            _apply(pos, vel, i, j, wi, wj, d, dt)
+            _apply(pos, vel, i, j, wi, wj, d, dt, moved_at, now)
             lam[c] = new
             change = max(change, dt * abs(step) / m)
         un = _relative(vel, solve, c, rel)
@@ -274,7 +312,12 @@ def _sweep(pos, vel, solve, count, dt, slip, d, rel):
             rel[a] -= fr[c, a] / m + un * n[c, a]
             speed += rel[a] * rel[a]
         speed = math.sqrt(speed)
-        jt = friction_impulse(speed, new, dt if new > 0.0 else 0.0, m, slip, mu_s, mu_k)
+        jt = stick = 0.0
+        if speed > 0.0 and new > 0.0:
+            stick = m * speed * law[c, 8]
+            jt = limited_friction(stick, new, m, speed, mu_k if solve.sliding[c] else mu_s,
+                                  mu_k)
+        solve.sliding[c] = jt < stick
         moved = 0.0
         for a in range(3):
             target = -jt * rel[a] / speed if jt > 0.0 else 0.0
@@ -282,7 +325,7 @@ def _sweep(pos, vel, solve, count, dt, slip, d, rel):
             fr[c, a] = target
             moved += d[a] * d[a]
         if moved > 0.0:
-            _apply(pos, vel, i, j, wi, wj, d, dt)
+            _apply(pos, vel, i, j, wi, wj, d, dt, moved_at, now)
             change = max(change, dt * math.sqrt(moved) / m)
     return change
 
@@ -318,7 +361,7 @@ def _gather_pairs(pos, vel, mass, radius, fixed, contact, solve, dt, count):
         solve.node[count, 0], solve.node[count, 1] = i, j
         ci, cj = cls[i], cls[j]
         _add(solve, count, q, kc[ci, cj], cc[ci, cj], mu_s[ci, cj], mu_k[ci, cj], wi, wj,
-             s0 + offset, solve.pair_warm[q])
+             s0 + offset, solve.pair_warm[q], dt, contact.params[0])
         count += 1
     return count
 
@@ -361,7 +404,7 @@ def _gather_debris(pos, vel, dv, mass, radius, fixed, contact, solve, dt, count)
         solve.node[count, 0], solve.node[count, 1] = -1, i
         c = cls[i]
         _add(solve, count, -1 - i, kc[0, c], cc[0, c], mu_s[0, c], mu_k[0, c], 0.0,
-             1.0 / mass[i], s0 + offset, solve.debris_warm[i])
+             1.0 / mass[i], s0 + offset, solve.debris_warm[i], dt, contact.params[0])
         count += 1
     return count
 
@@ -369,7 +412,8 @@ def _gather_debris(pos, vel, dv, mass, radius, fixed, contact, solve, dt, count)
 @nb.njit(cache=True, error_model="numpy")
 def _start(pos, vel, solve, count, dt):
     """Apply the warm-started impulses and mark active the contacts that touch, close
-    within the step at the free velocities, or start with an impulse."""
+    within the step at the free velocities, or start with an impulse; returns how many
+    are active (:func:`_listed`)."""
     d, rel = np.empty(3), np.empty(3)
     for c in range(count):
         un = _relative(vel, solve, c, rel)
@@ -382,7 +426,20 @@ def _start(pos, vel, solve, count, dt):
         for a in range(3):
             d[a] = solve.impulse[c] * solve.normal[c, a] + solve.friction[c, a]
         _apply(pos, vel, solve.node[c, 0], solve.node[c, 1], solve.law[c, 5],
-               solve.law[c, 6], d, dt)
+               solve.law[c, 6], d, dt, solve.moved_at, solve.clock[0])
+    return _listed(solve, count)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _listed(solve, count):
+    """The active contacts among the first ``count`` slots into solve.order, in slot order;
+    returns how many."""
+    active = 0
+    for c in range(count):
+        if solve.active[c]:
+            solve.order[active] = c
+            active += 1
+    return active
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -410,16 +467,17 @@ def coupled_stage(pos, vel, dv, mass, radius, fixed, contact, solve, dt, t):
         count = _gather_pairs(pos, vel, mass, radius, fixed, contact, solve, dt, count)
     if flags[0]:
         count = _gather_debris(pos, vel, dv, mass, radius, fixed, contact, solve, dt, count)
-    _start(pos, vel, solve, count, dt)
+    active = _start(pos, vel, solve, count, dt)
     tol, most = solve.settings[0], int(solve.settings[1])
-    slip = contact.params[0]
     d, rel = np.empty(3), np.empty(3)
     sweeps = 0
     while sweeps < most:
-        change = _sweep(pos, vel, solve, count, dt, slip, d, rel)
+        change = _sweep(pos, vel, solve, active, dt, d, rel)
         sweeps += 1
-        if change <= tol and _join(vel, solve, count, dt) == 0:
-            break
+        if change <= tol:
+            if _join(vel, solve, count, dt) == 0:
+                break
+            active = _listed(solve, count)
     stats = solve.stats
     stats[0] += sweeps
     stats[2] += count
