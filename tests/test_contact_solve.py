@@ -134,3 +134,41 @@ def test_coupled_pressed_row_keeps_momentum_and_settles_at_each_penetration():
     overlaps = 2 * RADIUS - np.diff(pos[:3, 2])
     np.testing.assert_allclose(overlaps, force / k_c, rtol=0, atol=scene.contact.tolerance)
     assert a.solve.stats[1] == 0  # every step converged
+
+
+def test_coupled_sweeps_converge_where_frictions_share_nodes():
+    # References: momentum conservation (a node-node impulse acts equally and oppositely),
+    # Coulomb's bound of Eq. 12 (no friction impulse above mu_s times its normal impulse)
+    # and the solve's own convergence. Five free nodes in a zigzag row, squeezed together,
+    # slipping in every direction: each contact shares a node with the next. With Eq. 12's
+    # jump from mu_s to mu_k = mu_s / 1.25, contacts flipped between sticking and sliding
+    # from one sweep to the next and a step ran to the cap of 500 sweeps without
+    # converging; a friction that slid slides on for the step's sweeps, and every step
+    # converges.
+    scene = bn.load_scenario("capture", {"net.nodes_per_side": 2,
+                                         "contact.solver": "coupled"})
+    model, _ = column(5, 0.0)
+    a = contact.setup(scene, model).arrays
+    angles = [-0.40461403, 0.28136862, -0.59512706, 0.19236676]  # [rad], in the x-z plane
+    row = [np.zeros(3)]
+    for angle in angles:  # touching, 1.4 um of overlap
+        row.append(row[-1] + 2 * RADIUS * (1 - 1e-4) * np.array(
+            [np.cos(angle), 0.0, np.sin(angle)]))
+    pos = np.array(row + [(10.0 * q, 1e3, 0.0) for q in range(1, model.node_count - 4)])
+    vel = np.zeros_like(pos)
+    vel[:5] = [[0.07630839, -0.00767325, 0.02266574], [0.05141595, -0.02351251, 0.07331395],
+               [-0.09775792, -0.06305243, -0.04525725], [-0.12222334, -0.04998813, 0.0624186],
+               [0.01207645, 0.00486792, 0.0860501]]  # [m/s]
+    mass, dt, dv = model.mass, 5e-4, np.zeros_like(vel)
+    mu_s = contact.pair_tables(scene, model)[2][4, 4]
+    for k in range(20):
+        pos += dt * vel
+        assert contact.ensure_pairs(pos - dt * vel, model.radius, a)
+        momentum = mass @ vel
+        contact.contact_stage(pos, vel, dv, mass, model.radius, model.fixed, a, dt, k * dt)
+        np.testing.assert_allclose(mass @ vel, momentum, rtol=0, atol=1e-15)
+        pressed = a.solve.impulse > 0.0
+        assert np.all(np.linalg.norm(a.solve.friction[pressed], axis=1)
+                      <= mu_s * a.solve.impulse[pressed] * (1 + 1e-12))
+    assert a.solve.stats[1] == 0  # every step converged
+    assert a.solve.stats[2] > 0  # and there were contacts to solve
