@@ -53,13 +53,14 @@ def column(layers: int, load: float) -> tuple[NetModel, np.ndarray]:
 
 def column_scene(tmp_path, solver: str):
     """The capture's contact (implicit law, self-contact, its friction) with a 1e12 kg slab
-    whose top is the plane z = 0, at the removal's step (5e-4 s, implicit Euler)."""
+    whose top is the plane z = 0, at the removal's step (5e-4 s, implicit Euler); the coupled
+    solve to 1e-12 m on the end gaps, far below the column's static overlaps (3e-8 m)."""
     (tmp_path / "slab.toml").write_text(SLAB)
     return bn.load_scenario("capture", {
         "debris.asset": str(tmp_path / "slab.toml"), "debris.rotation": [90.0, 0.0, 0.0],
         "debris.position": [0.0, 0.0, 0.0], "debris.angular_velocity": [0.0, 0.0, 0.0],
         "simulation.dt": 5e-4, "closing.enabled": False, "tether.enabled": False,
-        "contact.solver": solver})
+        "contact.solver": solver, "contact.tolerance": 1e-12})
 
 
 def audit(model: NetModel, pos0: np.ndarray, state: NetState) -> float:
@@ -110,9 +111,10 @@ def test_coupled_pressed_row_keeps_momentum_and_settles_at_each_penetration():
     # References: momentum conservation (a node-node impulse acts equally and oppositely)
     # and static equilibrium of Eq. 6: three free nodes in a row squeezed by opposite forces
     # F on the end ones keep zero total momentum, and each of the two contacts settles at the
-    # overlap F / k_c of its pair (Eq. 9-10 stiffness, Table 5), to the solve's tolerance.
-    scene = bn.load_scenario("capture", {"net.nodes_per_side": 2,
-                                         "contact.solver": "coupled"})
+    # overlap F / k_c of its pair (Eq. 9-10 stiffness, Table 5), to the solve's tolerance
+    # (1e-12 m, far below the overlap, 1.6e-9 m).
+    scene = bn.load_scenario("capture", {"net.nodes_per_side": 2, "contact.solver": "coupled",
+                                         "contact.tolerance": 1e-12})
     model, _ = column(3, 0.0)
     setup = contact.setup(scene, model)
     a = setup.arrays
@@ -144,9 +146,9 @@ def test_coupled_sweeps_converge_where_frictions_share_nodes():
     # jump from mu_s to mu_k = mu_s / 1.25, contacts flipped between sticking and sliding
     # from one sweep to the next and a step ran to the cap of 500 sweeps without
     # converging; a friction that slid slides on for the step's sweeps, and every step
-    # converges.
-    scene = bn.load_scenario("capture", {"net.nodes_per_side": 2,
-                                         "contact.solver": "coupled"})
+    # converges. (At the end-gap tolerance at which the stall was found, 1e-9 m.)
+    scene = bn.load_scenario("capture", {"net.nodes_per_side": 2, "contact.solver": "coupled",
+                                         "contact.tolerance": 1e-9})
     model, _ = column(5, 0.0)
     a = contact.setup(scene, model).arrays
     angles = [-0.40461403, 0.28136862, -0.59512706, 0.19236676]  # [rad], in the x-z plane

@@ -168,9 +168,12 @@ class Contact:
     projected Gauss-Seidel (to ``tolerance``, warm-started), absorbing such an overlap
     instead (no work done): for stacked contacts, as in a cinched net (docs/capture.md,
     "Contact"; needs ``model = "implicit"``)."""
-    tolerance: float = _f(1e-9, "m", ">0")
+    tolerance: float = _f(1e-6, "m", ">0")
     """Coupled solver: the sweeps stop when none changes any contact's end-of-step gap by
-    more than this [m]."""
+    more than this [m]. A node placed this far off moves a net thread's tension by its
+    stiffness times it (5.5e4 N/m for the capture's 1 m threads: 0.06 N, a ten-thousandth of
+    their breaking load); the contacts themselves are far stiffer (k_c ~ 3e9 N/m), so their
+    forces are set by the threads they hold (docs/capture.md, "Contact at practical steps")."""
     sweeps: int = _f(500, "-", ">0")
     """Coupled solver: most Gauss-Seidel sweeps in a step [-]; the steps that reach it are
     counted (``stats_contact_unconverged``)."""
