@@ -4,12 +4,14 @@ The first run of a scene compiles groups of kernels that do not depend on each o
 threads' step (the implicit solver), the bending springs, the contact stage (the Verlet
 list, the debris' signed distance, the contact laws). numba compiles in the process that
 calls, holding the interpreter, so one process compiles them one after the other.
-:func:`compile_ahead` has a second process compile the groups other than the step and the
-frame's (the thread loads each recorded frame computes) that numba's cache lacks (into the
-same folder: :mod:`bulletnet.common.kernel_cache`) while this one compiles those two; the
-compiled loop then loads them all. (The split roughly balances the two processes: the
-capture with bending's step and frame kernels took 11.6 and 2.1 s here, its bending springs
-and contact stage 4.8 and 13.4 s there; docs/development.md.) If the cache holds those groups,
+:func:`compile_ahead` has a second process compile the contact stage, if numba's cache lacks
+it, or else the other groups it lacks besides the step and the frame's (the thread loads
+each recorded frame computes), into the same folder (:mod:`bulletnet.common.kernel_cache`),
+while this one compiles the rest; the compiled loop then loads them all. (The split roughly
+balances the two processes: the capture with bending's step and frame kernels took 11.6 and
+2.1 s, its bending springs and contact stage 4.8 and 13.4 s; the closing capture's contact
+stage with its coupled solve 29 s, its bending springs 5.8 s; docs/development.md.) If the
+cache holds those groups,
 or the second process fails, nothing changes but the time: each process compiles exactly
 what a run would (the same kernels for the same argument types), so the results are the
 same.
@@ -74,20 +76,24 @@ def stop_helper(helper: subprocess.Popen | None) -> None:
 
 def compile_ahead(scenario, engine, state) -> subprocess.Popen | None:
     """Compile the engine's kernel groups for ``state`` on two cores when numba's cache lacks
-    any group besides the step and the frame's (see the module doc); otherwise do nothing (the
+    any group besides the step and the frame's: the contact stage there if it is among them,
+    else those groups, and the rest here (see the module doc); otherwise do nothing (the
     run compiles or loads as usual). The tow's loop (group ``tow``, a scene whose burn switches
     integrator) is left compiling in a second process while the run goes on, to be loaded
     at the switch: the process is returned, for :func:`stop_helper` at the run's end (None:
     none)."""
     groups = engine.kernel_groups(state)
-    here = ("step", "frame")
-    missing = [name for name, calls in groups.items() if name not in (*here, "tow")
+    missing = [name for name, calls in groups.items() if name not in ("step", "frame", "tow")
                and not all(is_cached(d, a) for d, a in calls)]
     if missing:
-        helper = _helper(scenario, missing)
+        # the contact stage, the largest group, alone there when it is missing (the closing
+        # capture's with its coupled solve 29 s, the step and frame with bending 23 s)
+        there = ["contact"] if "contact" in missing else missing
+        helper = _helper(scenario, there)
         try:
-            for name in here:  # (no step on the grid's symplectic path: inlined in the loop)
-                compile_group(groups.get(name, []))
+            for name in groups:  # (no step on the grid's symplectic path: inlined in the loop)
+                if name not in (*there, "tow"):
+                    compile_group(groups[name])
             helper.wait(timeout=HELPER_TIMEOUT_S)
         except subprocess.TimeoutExpired:
             pass  # this process compiles what is left, as the run goes
