@@ -323,10 +323,9 @@ def pcg_iterations(matrix, b, x0, tol: float, precondition) -> int:
 def incomplete_cholesky(a) -> np.ndarray:
     """IC(0) of the symmetric positive definite ``a`` (scipy CSR): the lower triangular L,
     dense, with L L^T = a on a's own sparsity pattern (no fill-in)."""
-    dense = a.toarray()
-    lower = np.tril(dense)
+    lower = np.tril(a.toarray())
     pattern = lower != 0.0
-    for k in range(dense.shape[0]):
+    for k in range(lower.shape[0]):
         lower[k, k] = np.sqrt(lower[k, k])
         below = k + 1 + np.nonzero(pattern[k + 1:, k])[0]
         lower[below, k] /= lower[k, k]

@@ -86,12 +86,10 @@ def compile_ahead(scenario, engine, state) -> subprocess.Popen | None:
     missing = [name for name, calls in groups.items() if name not in ("step", "frame", "tow")
                and not all(is_cached(d, a) for d, a in calls)]
     if missing:
-        # the contact stage, the largest group, alone there when it is missing (the closing
-        # capture's with its coupled solve 29 s, the step and frame with bending 23 s)
-        there = ["contact"] if "contact" in missing else missing
+        there = ["contact"] if "contact" in missing else missing  # the largest: module doc
         helper = _helper(scenario, there)
         try:
-            for name in groups:  # (no step on the grid's symplectic path: inlined in the loop)
+            for name in groups:
                 if name not in (*there, "tow"):
                     compile_group(groups[name])
             helper.wait(timeout=HELPER_TIMEOUT_S)
