@@ -79,16 +79,21 @@ def contact_world(**overrides):
 
 
 def step_node_on_plane(model, setup, pos, vel, accel, dt, steps):
-    """Symplectic Euler free steps of node 0 under ``accel`` [m/s^2], then the contact stage;
-    the other nodes are far away."""
+    """Symplectic Euler free steps of node 0 under ``accel`` [m/s^2], then the debris contact
+    (the scene's solver); the other nodes are far away."""
     dv = np.zeros_like(vel)
     for k in range(steps):
         dv[:] = 0.0
         dv[0] = accel * dt
         vel += dv
         pos += dt * vel
-        contact.debris_stage(pos, vel, dv, model.mass, model.radius, model.fixed,
-                             setup.arrays, dt, k * dt)
+        contact.contact_stage(pos, vel, dv, model.mass, model.radius, model.fixed,
+                              setup.arrays, dt, k * dt)
+
+
+FRICTION_SOLVERS = [{}, {"contact.solver": "coupled", "contact.tolerance": 1e-13}]
+"""The debris contact's friction as the sequential stage and as the coupled solve (to end
+gaps of 1e-13 m, below the resting overlap, 2.4e-12 m) apply it."""
 
 
 def placed(model, y0: float, v0=(0.0, 0.0, 0.0)):
@@ -111,10 +116,12 @@ def test_node_rests_on_the_debris_at_its_pair_penetration():
     assert abs(vel[0, 1]) < 1e-9
 
 
+@pytest.mark.parametrize("solver", FRICTION_SOLVERS)
 @pytest.mark.parametrize("push", [0.5, 0.9])
-def test_node_sticks_below_static_friction(push):
-    # Reference: Coulomb (Eq. 12): a tangential pull below mu_s N leaves the node at rest.
-    scene, model, setup = contact_world()
+def test_node_sticks_below_static_friction(push, solver):
+    # Reference: Coulomb (Eq. 12): a tangential pull below mu_s N leaves the node at rest,
+    # also between mu_k N and mu_s N (0.9 mu_s N; mu_k = mu_s / 1.25).
+    scene, model, setup = contact_world(**solver, **{"contact.self_contact": False})
     mu_s = scene.friction.aluminium_net
     g = 9.81
     pos, vel = placed(model, model.radius[0] - model.mass[0] * g / 4.243e9)
@@ -123,10 +130,12 @@ def test_node_sticks_below_static_friction(push):
     assert abs(vel[0, 0]) < 1e-9 and abs(pos[0, 0]) < 1e-9
 
 
-def test_node_slides_with_kinetic_friction():
+@pytest.mark.parametrize("solver", FRICTION_SOLVERS)
+def test_node_slides_with_kinetic_friction(solver):
     # Reference: Coulomb (Eq. 12): sliding decelerates at mu_k g; the node stops after
-    # v0 / (mu_k g) [s] having slid v0^2 / (2 mu_k g) [m].
-    scene, model, setup = contact_world()
+    # v0 / (mu_k g) [s] having slid v0^2 / (2 mu_k g) [m]. (The coupled solve bounds a
+    # contact's first step by mu_s: 1e-4 s at (mu_s - mu_k) g, 5e-5 m/s, 1e-4 of v0.)
+    scene, model, setup = contact_world(**solver, **{"contact.self_contact": False})
     mu_k = scene.friction.aluminium_net / scene.friction.kinetic_ratio
     g, v0, dt = 9.81, 0.5, 1e-4
     pos, vel = placed(model, model.radius[0] - model.mass[0] * g / 4.243e9, (v0, 0.0, 0.0))

@@ -144,9 +144,10 @@ def test_coupled_sweeps_converge_where_frictions_share_nodes():
     # Coulomb's bound of Eq. 12 (no friction impulse above mu_s times its normal impulse)
     # and the solve's own convergence. Five free nodes in a zigzag row, squeezed together,
     # slipping in every direction: each contact shares a node with the next. With Eq. 12's
-    # jump from mu_s to mu_k = mu_s / 1.25, contacts flipped between sticking and sliding
-    # from one sweep to the next and a step ran to the cap of 500 sweeps without
-    # converging; a friction that slid slides on for the step's sweeps, and every step
+    # jump from mu_s to mu_k = mu_s / 1.25 within the sweeps, contacts flipped between
+    # sticking and sliding from one sweep to the next and a step ran to the cap of 500
+    # sweeps without converging; each contact's bound now stays fixed through a step's
+    # sweeps (mu_s, or mu_k if it slid at the end of the last step), and every step
     # converges. (At the end-gap tolerance at which the stall was found, 1e-9 m.)
     scene = bn.load_scenario("capture", {"net.nodes_per_side": 2, "contact.solver": "coupled",
                                          "contact.tolerance": 1e-9})

@@ -17,8 +17,9 @@ velocities the others' current impulses leave (the single-contact law solved for
 impulse), until no sweep changes any contact's end gap by more than ``contact.tolerance``
 [m] (``contact.sweeps`` at most). The impulses start from the last step's (warm start), so
 that a resting stack takes a few sweeps. A sweep passes over a contact whose nodes no
-impulse has moved since it was last solved, and a contact's friction that slid stays sliding
-for the rest of the step's sweeps unless mu_k would stop it (:func:`_sweep`). A node-node
+impulse has moved since it was last solved. A contact's friction is bounded in a step by
+one coefficient, the regime it ended the last step in: mu_s if it stuck (or is new), mu_k if
+it slid (:func:`_sweep`). A node-node
 impulse acts equally and oppositely on its two nodes (clamped nodes do not move); debris
 impulses are summed, force and moment, for its rigid body. Positions follow the velocities
 (x_1 = x_0 + dt v_1), as in the free step.
@@ -44,13 +45,14 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from ..kernels.contact import limited_friction, stick_fraction
+from ..kernels.contact import stick_fraction
 from .debris_gap import debris_pose, start_gap, surface_speed
 
-CONTACT_COLUMNS = 9
-"""Columns of a contact's law row: reduced mass [kg], stiffness [N/m], damping [N s/m], mu_s,
-mu_k [-], the inverse masses of its two nodes [1/kg] (node i's 0 for the debris), gap at
-the start of the step with its offset [m], the share of a slip's momentum the viscous
+CONTACT_COLUMNS = 8
+"""Columns of a contact's law row: reduced mass [kg], stiffness [N/m], damping [N s/m], the
+step's friction coefficient [-] (mu_s, or mu_k if the contact's friction slid at the end of
+the last step), the inverse masses of its two nodes [1/kg] (node i's 0 for the debris), gap
+at the start of the step with its offset [m], the share of a slip's momentum the viscous
 stick takes over the step [-] (:func:`~bulletnet.kernels.contact.stick_fraction`)."""
 
 
@@ -73,14 +75,14 @@ class SolveArrays(NamedTuple):
     lever: np.ndarray
     """Contact point from the debris' centre of mass [m], shape (K, 3)."""
     law: np.ndarray
-    """Each contact's law (:data:`CONTACT_COLUMNS`), shape (K, 9)."""
+    """Each contact's law (:data:`CONTACT_COLUMNS`), shape (K, 8)."""
     active: np.ndarray
     """Whether the sweeps update the contact [-], shape (K,), bool."""
     order: np.ndarray
     """The active contacts, in slot order [-], shape (K,), int64 (the first of them)."""
     sliding: np.ndarray
-    """Whether the contact's friction slid when the sweeps last solved it in this step [-],
-    shape (K,), bool."""
+    """Whether the contact's friction slid (its bound below the viscous stick) when the
+    sweeps last solved it in this step [-], shape (K,), bool."""
     solved_at: np.ndarray
     """The clock when the sweeps last solved the contact (-1: not yet in this step) [-],
     shape (K,), int64."""
@@ -94,17 +96,18 @@ class SolveArrays(NamedTuple):
     friction: np.ndarray
     """Accumulated friction impulse on j [N s], shape (K, 3)."""
     pair_warm: np.ndarray
-    """Each pair's last normal impulse [N s] (4th column: none) and friction impulse [N s],
-    shape (C, 4)."""
+    """Each pair's last normal impulse [N s] (4th column: none), friction impulse [N s] and
+    whether that friction slid (1) or stuck (0) [-], shape (C, 5)."""
     debris_warm: np.ndarray
-    """Each node's last debris normal and friction impulse [N s], shape (N, 4)."""
+    """Each node's last debris normal and friction impulse [N s] and whether that friction
+    slid [-], shape (N, 5)."""
     pair_offset: np.ndarray
     """Overlap absorbed into each pair's reference [m], shape (C,)."""
     debris_offset: np.ndarray
     """Overlap absorbed into each node's debris contact reference [m], shape (N,)."""
     old_pairs: np.ndarray
     """The Verlet list before a rebuild, with each pair's predicted gap, offset and warm
-    impulses carried to the new list [-, m, m, N s], shape (C, 8)."""
+    start carried to the new list [-, m, m, N s, -], shape (C, 9)."""
     stats: np.ndarray
     """Sweeps so far, steps that reached the most sweeps, contacts solved (summed over
     steps) [-], shape (3,)."""
@@ -123,9 +126,9 @@ def solve_arrays(tolerance: float, sweeps: int, nodes: int, pairs: int) -> Solve
         solved_at=np.zeros(slots, dtype=np.int64), moved_at=np.zeros(nodes, dtype=np.int64),
         clock=np.zeros(1, dtype=np.int64),
         impulse=np.zeros(slots), friction=np.zeros((slots, 3)),
-        pair_warm=np.zeros((pairs, 4)), debris_warm=np.zeros((nodes, 4)),
+        pair_warm=np.zeros((pairs, 5)), debris_warm=np.zeros((nodes, 5)),
         pair_offset=np.zeros(pairs), debris_offset=np.zeros(nodes),
-        old_pairs=np.zeros((pairs, 8)), stats=np.zeros(3))
+        old_pairs=np.zeros((pairs, 9)), stats=np.zeros(3))
 
 
 def grown(solve: SolveArrays, nodes: int, pairs: int) -> SolveArrays:
@@ -141,7 +144,7 @@ def grown(solve: SolveArrays, nodes: int, pairs: int) -> SolveArrays:
 @nb.njit(cache=True, error_model="numpy")
 def keep_pairs(solve, pairs, count, pair_gap):
     """Before the Verlet list is rebuilt: its ``count`` pairs with their predicted gaps,
-    offsets and warm impulses, for :func:`carry_pairs`."""
+    offsets and warm starts, for :func:`carry_pairs`."""
     if solve is None:
         return
     old = solve.old_pairs
@@ -149,14 +152,14 @@ def keep_pairs(solve, pairs, count, pair_gap):
         old[q, 0], old[q, 1] = min(pairs[q, 0], pairs[q, 1]), max(pairs[q, 0], pairs[q, 1])
         old[q, 2] = pair_gap[q]
         old[q, 3] = solve.pair_offset[q]
-        for a in range(4):
+        for a in range(5):
             old[q, 4 + a] = solve.pair_warm[q, a]
 
 
 @nb.njit(cache=True, error_model="numpy")
 def carry_pairs(solve, pairs, count, old_count, pair_gap, nodes):
     """After the Verlet list is rebuilt: each pair that was in the old list takes its
-    predicted gap, offset and warm impulses (:func:`keep_pairs`); a new pair has none (gap
+    predicted gap, offset and warm start (:func:`keep_pairs`); a new pair has none (gap
     +inf). Pairs are found by their lower node (counting sort), in time linear in the list."""
     if solve is None:
         return
@@ -182,7 +185,7 @@ def carry_pairs(solve, pairs, count, old_count, pair_gap, nodes):
             if int(old[p, 1]) == hi:
                 pair_gap[q] = old[p, 2]
                 solve.pair_offset[q] = old[p, 3]
-                for a in range(4):
+                for a in range(5):
                     solve.pair_warm[q, a] = old[p, 4 + a]
                 break
 
@@ -226,13 +229,14 @@ def _absorb(s0, offset, predicted, stats):
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def _add(solve, c, k, kc, cc, mu_s, mu_k, wi, wj, gap, warm, dt, slip):
     """Fill contact slot ``c`` (nodes, normal, surface and lever set by the caller) with its
-    law over the step ``dt`` [s] (friction's ``slip`` coefficient [s/kg]), and start its
-    impulses from ``warm`` (normal, then friction in the tangent plane), not yet solved."""
+    law over the step ``dt`` [s] (friction's ``slip`` coefficient [s/kg]; mu_k if ``warm``
+    says the friction slid, else mu_s), and start its impulses from ``warm`` (normal, then
+    friction in the tangent plane), not yet solved."""
     law = solve.law
     law[c, 0] = m = 1.0 / (wi + wj)
-    law[c, 1], law[c, 2], law[c, 3], law[c, 4] = kc, cc, mu_s, mu_k
-    law[c, 5], law[c, 6], law[c, 7] = wi, wj, gap
-    law[c, 8] = stick_fraction(dt, m, slip)
+    law[c, 1], law[c, 2], law[c, 3] = kc, cc, mu_k if warm[4] > 0.0 else mu_s
+    law[c, 4], law[c, 5], law[c, 6] = wi, wj, gap
+    law[c, 7] = stick_fraction(dt, m, slip)
     solve.sliding[c] = False
     solve.solved_at[c] = -1
     n = solve.normal
@@ -277,10 +281,13 @@ def _sweep(pos, vel, solve, active, dt, d, rel):
     normal impulse from the backward-Euler law, then its friction impulse, at the velocities
     the others leave. A contact neither of whose nodes has moved since it was last solved
     is left as it is (solving it again would give its impulses again, to round-off).
-    Friction that slid when last solved in this step slides on until mu_k times the normal
-    impulse would stop the slip: with the law's jump from mu_s to mu_k, contacts sharing a
-    node could otherwise flip between sticking and sliding from one sweep to the next and
-    the sweeps not converge. Returns the largest change of an end gap the sweep made [m]."""
+    The friction impulse is the viscous stick of Eq. 12 limited to the step's coefficient
+    times the normal impulse, a bound that stays fixed through the step's sweeps (the
+    regime the contact ended the last step in: a stick past mu_s N slides at mu_s N for
+    this step and at mu_k N from the next). Eq. 12's jump from mu_s to mu_k within the
+    sweeps made contacts sharing a node flip between sticking and sliding from one sweep to
+    the next, and the sweeps not converge. Returns the largest change of an end gap the
+    sweep made [m]."""
     law, n, lam, fr = solve.law, solve.normal, solve.impulse, solve.friction
     moved_at, solved_at, clock = solve.moved_at, solve.solved_at, solve.clock
     change = 0.0
@@ -292,8 +299,8 @@ def _sweep(pos, vel, solve, active, dt, d, rel):
         clock[0] += 1
         now = clock[0]
         solved_at[c] = now
-        m, k, cc, mu_s, mu_k = law[c, 0], law[c, 1], law[c, 2], law[c, 3], law[c, 4]
-        wi, wj, gap = law[c, 5], law[c, 6], law[c, 7]
+        m, k, cc, mu = law[c, 0], law[c, 1], law[c, 2], law[c, 3]
+        wi, wj, gap = law[c, 4], law[c, 5], law[c, 6]
         u_free = _relative(vel, solve, c, rel) - lam[c] / m  # without its own impulse
         new = m * (-dt * k * gap - (dt * dt * k + dt * cc) * u_free) / (m + dt * cc
                                                                           + dt * dt * k)
@@ -314,9 +321,8 @@ def _sweep(pos, vel, solve, active, dt, d, rel):
         speed = math.sqrt(speed)
         jt = stick = 0.0
         if speed > 0.0 and new > 0.0:
-            stick = m * speed * law[c, 8]
-            jt = limited_friction(stick, new, m, speed, mu_k if solve.sliding[c] else mu_s,
-                                  mu_k)
+            stick = m * speed * law[c, 7]
+            jt = min(stick, mu * new)
         solve.sliding[c] = jt < stick
         moved = 0.0
         for a in range(3):
@@ -417,7 +423,7 @@ def _start(pos, vel, solve, count, dt):
     d, rel = np.empty(3), np.empty(3)
     for c in range(count):
         un = _relative(vel, solve, c, rel)
-        gap = solve.law[c, 7]
+        gap = solve.law[c, 6]
         solve.active[c] = gap <= 0.0 or gap + dt * un < 0.0 or solve.impulse[c] > 0.0
         if not solve.active[c]:
             solve.impulse[c] = 0.0
@@ -425,8 +431,8 @@ def _start(pos, vel, solve, count, dt):
             continue
         for a in range(3):
             d[a] = solve.impulse[c] * solve.normal[c, a] + solve.friction[c, a]
-        _apply(pos, vel, solve.node[c, 0], solve.node[c, 1], solve.law[c, 5],
-               solve.law[c, 6], d, dt, solve.moved_at, solve.clock[0])
+        _apply(pos, vel, solve.node[c, 0], solve.node[c, 1], solve.law[c, 4],
+               solve.law[c, 5], d, dt, solve.moved_at, solve.clock[0])
     return _listed(solve, count)
 
 
@@ -449,7 +455,7 @@ def _join(vel, solve, count, dt):
     rel = np.empty(3)
     joined = 0
     for c in range(count):
-        if not solve.active[c] and solve.law[c, 7] + dt * _relative(vel, solve, c, rel) < 0.0:
+        if not solve.active[c] and solve.law[c, 6] + dt * _relative(vel, solve, c, rel) < 0.0:
             solve.active[c] = True
             joined += 1
     return joined
@@ -487,11 +493,12 @@ def coupled_stage(pos, vel, dv, mass, radius, fixed, contact, solve, dt, t):
     for c in range(count):
         i, j, k = solve.node[c, 0], solve.node[c, 1], solve.source[c]
         lam = solve.impulse[c]
-        end = solve.law[c, 7] + dt * _relative(vel, solve, c, rel)
+        end = solve.law[c, 6] + dt * _relative(vel, solve, c, rel)
         warm = solve.pair_warm[k] if k >= 0 else solve.debris_warm[-1 - k]
         warm[0] = lam
         for a in range(3):
             warm[1 + a] = solve.friction[c, a]
+        warm[4] = 1.0 if solve.sliding[c] else 0.0
         if k >= 0:
             contact.pair_gap[k] = end
         else:
