@@ -91,9 +91,10 @@ def step_node_on_plane(model, setup, pos, vel, accel, dt, steps):
                               setup.arrays, dt, k * dt)
 
 
-FRICTION_SOLVERS = [{}, {"contact.solver": "coupled", "contact.tolerance": 1e-13}]
+FRICTION_SOLVERS = [{}, {"contact.solver": "coupled", "contact.model": "implicit",
+                        "contact.tolerance": 1e-13}]
 """The debris contact's friction as the sequential stage and as the coupled solve (to end
-gaps of 1e-13 m, below the resting overlap, 2.4e-12 m) apply it."""
+gaps of 1e-13 m, below the resting overlap, 6.1e-12 m) apply it."""
 
 
 def placed(model, y0: float, v0=(0.0, 0.0, 0.0)):
@@ -134,7 +135,7 @@ def test_node_sticks_below_static_friction(push, solver):
 def test_node_slides_with_kinetic_friction(solver):
     # Reference: Coulomb (Eq. 12): sliding decelerates at mu_k g; the node stops after
     # v0 / (mu_k g) [s] having slid v0^2 / (2 mu_k g) [m]. (The coupled solve bounds a
-    # contact's first step by mu_s: 1e-4 s at (mu_s - mu_k) g, 5e-5 m/s, 1e-4 of v0.)
+    # contact's first step by mu_s: 1e-4 s at (mu_s - mu_k) g, 2.9e-5 m/s, 6e-5 of v0.)
     scene, model, setup = contact_world(**solver, **{"contact.self_contact": False})
     mu_k = scene.friction.aluminium_net / scene.friction.kinetic_ratio
     g, v0, dt = 9.81, 0.5, 1e-4
