@@ -5,6 +5,8 @@ from __future__ import annotations
 import io
 import os
 import shutil
+import subprocess
+import sys
 import time
 
 import pytest
@@ -139,3 +141,25 @@ def test_compiled_loops_have_the_same_cache_key_in_every_process():
     keys = [subprocess.run([sys.executable, "-c", _CLOSURE_KEYS], capture_output=True,
                            text=True, check=True).stdout for _ in range(2)]
     assert keys[0].count("\n") == 6 and keys[0] == keys[1]
+
+
+def test_numba_finds_its_blas_without_scipy_linalg_init():
+    # Reference: numba's own check and numpy: after import_numba_arrays, in a fresh
+    # interpreter, scipy.linalg's __init__ has not run, a kernel calling np.dot (which numba
+    # compiles only with a BLAS) equals numpy's product, and scipy.linalg then imports whole.
+    code = """if True:
+        import sys
+        import numpy as np
+        from bulletnet.common.kernel_cache import import_numba_arrays
+        import_numba_arrays()
+        assert "scipy.linalg" not in sys.modules and "scipy.linalg.cython_blas" in sys.modules
+        import numba
+        x = np.arange(9.0).reshape(3, 3)
+        assert np.array_equal(numba.njit(lambda a, b: np.dot(a, b))(x, x), x @ x)
+        import scipy.linalg
+        a = x + 10.0 * np.eye(3)
+        assert np.allclose(a @ scipy.linalg.solve(a, np.ones(3)), 1.0, rtol=0, atol=1e-12)
+        print("ok")
+    """
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.stdout.strip() == "ok", out.stderr[-2000:]

@@ -52,6 +52,39 @@ def configure() -> None:
         config.reload_config()
 
 
+def import_numba_arrays() -> None:
+    """Import numba's array functions (``numba.np.arraymath``) with scipy.linalg's BLAS
+    extension module alone, not that package's ``__init__``.
+
+    numba's first compile or cache load in a process imports ``numba.np.arraymath``, which
+    checks for a BLAS by importing ``scipy.linalg.cython_blas``; that runs scipy.linalg's
+    ``__init__``, which imports most of scipy's and numpy's submodules (0.16 s of a
+    process's 1.1 s here, docs/speed.md) for no kernel of this package. With a stand-in for
+    the package, pointing at its folder, in ``sys.modules`` while the check runs, the import
+    loads the extension module alone; the stand-in is removed after, so a later ``import
+    scipy.linalg`` runs the real ``__init__`` (and finds the extension loaded). Does nothing
+    once numba's array functions or scipy.linalg are imported, or without scipy."""
+    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
+        return
+    import importlib.util
+    import types
+
+    try:
+        spec = importlib.util.find_spec("scipy.linalg")
+    except ImportError:
+        spec = None
+    if spec is None or not spec.submodule_search_locations:
+        import numba.np.arraymath  # noqa: F401
+        return
+    stand_in = types.ModuleType("scipy.linalg")
+    stand_in.__path__ = list(spec.submodule_search_locations)
+    sys.modules["scipy.linalg"] = stand_in
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        del sys.modules["scipy.linalg"]
+
+
 @contextlib.contextmanager
 def watch_compilation(on_start: Callable[[], None] | None = None,
                       on_end: Callable[[float], None] | None = None) -> Iterator[None]:

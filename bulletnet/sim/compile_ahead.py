@@ -105,10 +105,12 @@ def compile_ahead(scenario, engine, state) -> subprocess.Popen | None:
 def main(argv: list[str]) -> int:
     """The second process: build the scene's engine (``argv[0]``: its TOML) and compile the
     named kernel groups (``argv[1:]``)."""
+    from ..common.kernel_cache import import_numba_arrays
     from ..engines import make_engine
     from ..model.builder import build_model, initial_state
     from ..model.scenario import load
 
+    import_numba_arrays()
     try:
         scenario = load(argv[0])
     finally:

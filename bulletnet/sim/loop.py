@@ -19,7 +19,7 @@ from ..analysis.capture_score import ScoreGeometry, interior_samples
 from ..analysis.stability import Limits, analytical_limits, cable_frequency
 from ..common import interrupt
 from ..common.errors import BulletnetError, DivergenceError, ScenarioError
-from ..common.kernel_cache import watch_compilation
+from ..common.kernel_cache import import_numba_arrays, watch_compilation
 from ..engines import make_engine
 from ..model.builder import build_model, initial_state
 from ..model.scenario import Scenario, to_toml
@@ -195,6 +195,7 @@ def run(scenario: Scenario, out: str | os.PathLike | None = None, *,
     With ``[outcome]`` on, each frame is judged (:mod:`bulletnet.analysis.capture_score`) and the
     recording gets ``outcome`` and ``outcome_time_s``; with ``stop_when_decided`` the run
     ends, ``completed``, at the frame that decides it."""
+    import_numba_arrays()  # before the first kernel, which would import them the slow way
     model = preflight(scenario, out, force)
     state = initial_state(scenario, model)
     engine = make_engine(scenario, model)
