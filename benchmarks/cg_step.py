@@ -19,12 +19,15 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    matrix assembled column by column from the solver's own product, and plain PCG
    iteration counts to the scene's tolerance, from the solver's warm start and from zero,
    with block Jacobi (the solver's), symmetric Gauss-Seidel, incomplete Cholesky (IC(0), on
-   the matrix's own pattern: two triangular sweeps an application, as Gauss-Seidel's) and, if
-   ``pyamg`` is installed,
+   the matrix's own pattern: two triangular sweeps an application, as Gauss-Seidel's), block
+   D-ILU on the grid's threads alone (:func:`block_dilu`: what a forward and a backward
+   block sweep over the grid's stencils would apply) and, if ``pyamg`` is installed,
    smoothed-aggregation AMG (a V-cycle, with pyamg's Gauss-Seidel smoothing and with block
    Jacobi's) as preconditioners; and, on the grid, one forward block Gauss-Seidel sweep in
    node order over the grid's threads (what symmetric Gauss-Seidel with Eisenstat's trick
-   would run twice an iteration in place of the product and the preconditioning);
+   would run twice an iteration in place of the product and the preconditioning), and block
+   D-ILU's factor in node order (a 3 x 3 product and inverse a node, a chain as the sweep);
+   with them, the CG step with block D-ILU estimated from the parts (:func:`dilu_estimate`);
 4. the rest of the step at the grid path's state: the contact stages (node-debris and
    node-node, each called from a copy of the state) and then the whole step, the run's
    loop advanced over :data:`STEP_SPAN` (its CG iterations counted), so that the step's
@@ -51,7 +54,7 @@ from common import At, Yardsticks, best_us, machine, output_dir, parser, triad_b
 from contact_cache import debris_stage_calls
 
 import bulletnet as bn
-from bulletnet.kernels.axial import block_product
+from bulletnet.kernels.axial import block_product, invert3
 from bulletnet.solver import grid as G
 from bulletnet.solver import integrators, pcg
 from bulletnet.solver.contact_stage import self_stage
@@ -144,6 +147,50 @@ def _time_sweep(grid, r, z, calls):
                 z[0, i] = inv[0, i] * a0 + inv[1, i] * a1 + inv[2, i] * a2
                 z[1, i] = inv[3, i] * a0 + inv[4, i] * a1 + inv[5, i] * a2
                 z[2, i] = inv[6, i] * a0 + inv[7, i] * a1 + inv[8, i] * a2
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _sandwich(d, x, along, across, e0, e1, e2):
+    """d - B X B for 3 x 3 matrices as row-major 9-tuples, X symmetric, B a thread's block
+    (along - across) e e^T + across I (:func:`block_product`, column by column, then row by
+    row)."""
+    y00, y10, y20 = block_product(x[0], x[3], x[6], along, across, e0, e1, e2)
+    y01, y11, y21 = block_product(x[1], x[4], x[7], along, across, e0, e1, e2)
+    y02, y12, y22 = block_product(x[2], x[5], x[8], along, across, e0, e1, e2)
+    z00, z01, z02 = block_product(y00, y01, y02, along, across, e0, e1, e2)
+    z10, z11, z12 = block_product(y10, y11, y12, along, across, e0, e1, e2)
+    z20, z21, z22 = block_product(y20, y21, y22, along, across, e0, e1, e2)
+    return (d[0] - z00, d[1] - z01, d[2] - z02, d[3] - z10, d[4] - z11, d[5] - z12,
+            d[6] - z20, d[7] - z21, d[8] - z22)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _time_dilu_factor(grid, diagonal, out, calls):
+    """Block D-ILU's factor over the grid's threads in node order (:func:`block_dilu`):
+    D_i = A_ii - B_h D_(i-1)^-1 B_h - B_v D_(i-Ns)^-1 B_v, each D_i inverted into ``out``
+    (9, L), A_ii from ``diagonal`` (9, L). Each node waits for its left neighbour's inverse:
+    a chain, as the sweep."""
+    ns, n, blocks, eh, ev = G.U(grid.ns), G.U(grid.n), grid.blocks, grid.eh, grid.ev
+    for _ in range(calls):
+        for row in range(n // ns):
+            for col in range(ns):
+                i = row * ns + col
+                d = (diagonal[0, i], diagonal[1, i], diagonal[2, i], diagonal[3, i],
+                     diagonal[4, i], diagonal[5, i], diagonal[6, i], diagonal[7, i],
+                     diagonal[8, i])
+                if col > 0:  # the thread from node i - 1, at column Ns + i - 1
+                    c, k = ns + i - G.ONE, i - G.ONE
+                    d = _sandwich(d, (out[0, k], out[1, k], out[2, k], out[3, k], out[4, k],
+                                      out[5, k], out[6, k], out[7, k], out[8, k]),
+                                  blocks[0, c], blocks[1, c], eh[0, c], eh[1, c], eh[2, c])
+                if row > 0:  # the thread from node i - Ns, at column i
+                    k = i - ns
+                    d = _sandwich(d, (out[0, k], out[1, k], out[2, k], out[3, k], out[4, k],
+                                      out[5, k], out[6, k], out[7, k], out[8, k]),
+                                  blocks[2, i], blocks[3, i], ev[0, i], ev[1, i], ev[2, i])
+                m = invert3(d)
+                for a in range(9):
+                    out[a, i] = m[a]
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -259,12 +306,17 @@ class GridParts(At):
                  "two_sums_us": 2 * measured["sequential_sum_us"]}
         factor = best_us(lambda k: _time_factor(g, k))
         sweep = best_us(lambda k: _time_sweep(g, r, z, k))
+        inverse = g.block_inv[:, :count].T.reshape(count, 3, 3)  # (the factor's, just timed)
+        diagonal = np.zeros_like(g.block_inv)
+        diagonal[:, :count] = np.linalg.inv(inverse).reshape(count, 9).T
+        dilu = np.zeros_like(g.block_inv)
+        dilu_factor = best_us(lambda k: _time_dilu_factor(g, diagonal, dilu, k))
         taken = {
             "t_s": state.time, "nodes": count, "row_length": length,
             "cg_iterations_per_step": per_step, "factor_us": factor,
             "iteration_parts_us": parts, "iteration_us": iteration,
             "iteration_bytes": traffic, "bounds": measured, "iteration_floor_us": floor,
-            "gauss_seidel_sweep_us": sweep,
+            "gauss_seidel_sweep_us": sweep, "dilu_factor_us": dilu_factor,
             "cg_per_step_us": iteration * per_step}
         step = step_parts(e, state)  # (last: it advances the run)
         step["cg_us"] = iteration * step["cg_iterations_per_step"] + factor
@@ -298,7 +350,8 @@ class PairSystemAt(At):
             unit.reshape(-1)[k] = 0.0
         return {"matrix": matrix, "warm": warm.reshape(-1),
                 "solver_iterations": int(w.cg_iterations[0]) - before,
-                "solution": w.dv.copy().reshape(-1), "tol": e.cg_tolerance}
+                "solution": w.dv.copy().reshape(-1), "tol": e.cg_tolerance,
+                "nodes_per_side": e.model.nodes_per_side}
 
 
 def pcg_iterations(matrix, b, x0, tol: float, precondition) -> int:
@@ -335,6 +388,33 @@ def incomplete_cholesky(a) -> np.ndarray:
     return lower
 
 
+def block_dilu(matrix, ns: int):
+    """Block D-ILU on the net grid's threads alone: (D + L) D^-1 (D + L^T), L the 3 x 3 blocks
+    of ``matrix`` (3N x 3N, node-major) between grid neighbours (nodes i and i - 1 in a row,
+    i and i - Ns: the first Ns^2 nodes, row by row), D_i = A_ii - sum over those lower
+    neighbours k of A_ik D_k^-1 A_ki (every other coupling, the cables', the tether's, the
+    corner threads', only through A_ii): what one forward and one backward block sweep over
+    the grid's stencils would apply. Returns the preconditioner as a function of r."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
+
+    n = matrix.shape[0] // 3
+    block = matrix.reshape(n, 3, n, 3)
+    diagonal, inverse = np.zeros((n, 3, 3)), np.zeros((n, 3, 3))
+    lower = sp.lil_matrix(matrix.shape)
+    for i in range(n):
+        d = block[i, :, i, :].copy()
+        below = [] if i >= ns * ns else [k for k in (i - 1, i - ns)
+                                          if k >= 0 and (k == i - ns or i % ns)]
+        for k in below:
+            d -= block[i, :, k, :] @ inverse[k] @ block[k, :, i, :]
+            lower[3 * i:3 * i + 3, 3 * k:3 * k + 3] = block[i, :, k, :]
+        diagonal[i], inverse[i] = d, np.linalg.inv(d)
+    d = sp.block_diag(list(diagonal), format="csc")
+    forward, backward = splu((d + lower).tocsc()), splu((d + lower.T).tocsc())
+    return lambda r: backward.solve(d @ forward.solve(r))
+
+
 def preconditioners(taken: dict) -> dict:
     """Iterations by preconditioner, from the warm start and from zero (see module doc)."""
     import scipy.sparse as sp
@@ -353,6 +433,7 @@ def preconditioners(taken: dict) -> dict:
             upper, diagonal * spsolve_triangular(lower, r, lower=True), lower=False),
         "incomplete_cholesky": lambda r: spsolve_triangular(
             factor_t, spsolve_triangular(factor, r, lower=True), lower=False),
+        "block_dilu_grid_threads": block_dilu(taken["matrix"], taken["nodes_per_side"]),
     }
     try:
         import pyamg
@@ -372,6 +453,23 @@ def preconditioners(taken: dict) -> dict:
         name: {"warm": pcg_iterations(a, b, warm, tol, f),
                "zero": pcg_iterations(a, b, np.zeros_like(b), tol, f)}
         for name, f in methods.items()}}
+
+
+def dilu_estimate(case: dict) -> dict:
+    """A CG step with block D-ILU on the grid's threads, estimated from the parts timed
+    alone [us]: an iteration is a forward and a backward sweep (each the forward sweep's
+    time), the product, d . A d, the updates and the sums r . z and r . r (two sequential
+    chains); a step, the iterations from the warm start times that plus the factor. Beside
+    it the block-Jacobi step from the same parts."""
+    parts, bound = case["iteration_parts_us"], case["bounds"]["sequential_sum_us"]
+    iteration = (2 * case["gauss_seidel_sweep_us"] + parts["product"] + parts["dot_d_ad"]
+                 + parts["updates"] + 2 * bound)
+    taken = case["preconditioners"]["iterations"]
+    dilu, jacobi = taken["block_dilu_grid_threads"]["warm"], taken["block_jacobi"]["warm"]
+    return {"iteration_us": iteration, "iterations": dilu,
+            "step_us": dilu * iteration + case["dilu_factor_us"],
+            "block_jacobi_iterations": jacobi,
+            "block_jacobi_step_us": jacobi * case["iteration_us"] + case["factor_us"]}
 
 
 def main() -> int:
@@ -394,6 +492,7 @@ def main() -> int:
                observers=[system])
         doc["cases"][name] = {"scene": scene_name, "overrides": overrides, **parts.taken,
                               "preconditioners": preconditioners(system.taken)}
+        doc["cases"][name]["block_dilu_estimate"] = dilu_estimate(doc["cases"][name])
         print(f"{name}: {json.dumps(doc['cases'][name], indent=1)}", flush=True)
     yard.time()
     doc["yardsticks"] = yard.doc()
