@@ -26,8 +26,10 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    Jacobi's) as preconditioners; and, on the grid, one forward block Gauss-Seidel sweep in
    node order over the grid's threads (what symmetric Gauss-Seidel with Eisenstat's trick
    would run twice an iteration in place of the product and the preconditioning), and block
-   D-ILU's factor in node order (a 3 x 3 product and inverse a node, a chain as the sweep);
-   with them, the CG step with block D-ILU estimated from the parts (:func:`dilu_estimate`);
+   D-ILU's factor in node order (a 3 x 3 product and inverse a node, a chain as the sweep),
+   both also in wavefront order (:func:`wavefront`: by the grid's anti-diagonals, whose nodes
+   are independent; checked to give the same results, bit for bit); with them, the CG step
+   with block D-ILU estimated from the parts (:func:`dilu_estimate`);
 4. the rest of the step at the grid path's state: the contact stages (node-debris and
    node-node, each called from a copy of the state) and then the whole step, the run's
    loop advanced over :data:`STEP_SPAN` (its CG iterations counted), so that the step's
@@ -121,32 +123,42 @@ def _time_updates(dv, z, d, alpha, beta, calls):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _time_sweep(grid, r, z, calls):
-    """A forward block Gauss-Seidel sweep, (D + L) z = r in node order, over the grid's threads
-    alone (a full sweep adds the other threads and the cables): z_i = D_i^-1 (r_i + B_h z_(i-1)
-    + B_v z_(i-Ns)), D_i^-1 the factor's inverse blocks, B a thread's block (its off-diagonal
-    entry of A is -B). Each node waits for its left neighbour's z: a chain, not a vector loop."""
-    ns, n, blocks, eh, ev, inv = G.U(grid.ns), G.U(grid.n), grid.blocks, grid.eh, grid.ev, \
-        grid.block_inv
+def _time_sweep(grid, r, z, order, calls):
+    """A forward block Gauss-Seidel sweep, (D + L) z = r, over the grid's threads alone (a full
+    sweep adds the other threads and the cables): z_i = D_i^-1 (r_i + B_h z_(i-1) + B_v
+    z_(i-Ns)), D_i^-1 the factor's inverse blocks, B a thread's block (its off-diagonal entry
+    of A is -B), node by node in ``order`` (:func:`wavefront`: node order, a chain, each node
+    waiting for its left neighbour; or the grid's anti-diagonals, whose nodes are
+    independent: the same operations on the same values, so the same z)."""
+    ns, blocks, eh, ev, inv = G.U(grid.ns), grid.blocks, grid.eh, grid.ev, grid.block_inv
     for _ in range(calls):
-        for row in range(n // ns):
-            for col in range(ns):
-                i = row * ns + col
-                a0, a1, a2 = r[0, i], r[1, i], r[2, i]
-                if col > 0:  # the thread from node i - 1, at column Ns + i - 1
-                    c = ns + i - G.ONE
-                    w0, w1, w2 = block_product(z[0, i - 1], z[1, i - 1], z[2, i - 1],
-                                               blocks[0, c], blocks[1, c], eh[0, c], eh[1, c],
-                                               eh[2, c])
-                    a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
-                if row > 0:  # the thread from node i - Ns, at column i
-                    w0, w1, w2 = block_product(z[0, i - ns], z[1, i - ns], z[2, i - ns],
-                                               blocks[2, i], blocks[3, i], ev[0, i], ev[1, i],
-                                               ev[2, i])
-                    a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
-                z[0, i] = inv[0, i] * a0 + inv[1, i] * a1 + inv[2, i] * a2
-                z[1, i] = inv[3, i] * a0 + inv[4, i] * a1 + inv[5, i] * a2
-                z[2, i] = inv[6, i] * a0 + inv[7, i] * a1 + inv[8, i] * a2
+        for i in order:
+            a0, a1, a2 = r[0, i], r[1, i], r[2, i]
+            if i % ns > 0:  # the thread from node i - 1, at column Ns + i - 1
+                c = ns + i - G.ONE
+                w0, w1, w2 = block_product(z[0, i - 1], z[1, i - 1], z[2, i - 1],
+                                           blocks[0, c], blocks[1, c], eh[0, c], eh[1, c],
+                                           eh[2, c])
+                a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
+            if i >= ns:  # the thread from node i - Ns, at column i
+                w0, w1, w2 = block_product(z[0, i - ns], z[1, i - ns], z[2, i - ns],
+                                           blocks[2, i], blocks[3, i], ev[0, i], ev[1, i],
+                                           ev[2, i])
+                a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
+            z[0, i] = inv[0, i] * a0 + inv[1, i] * a1 + inv[2, i] * a2
+            z[1, i] = inv[3, i] * a0 + inv[4, i] * a1 + inv[5, i] * a2
+            z[2, i] = inv[6, i] * a0 + inv[7, i] * a1 + inv[8, i] * a2
+
+
+def wavefront(ns: int, along_diagonals: bool) -> np.ndarray:
+    """The grid's Ns^2 node indices (row-major) in node order, or by anti-diagonals (row +
+    column = 0, 1, ..., 2 Ns - 2): an order in which node i still comes after i - 1 and
+    i - Ns."""
+    nodes = np.arange(ns * ns, dtype=np.uint64)
+    if not along_diagonals:
+        return nodes
+    row, col = nodes // np.uint64(ns), nodes % np.uint64(ns)
+    return nodes[np.lexsort((row, row + col))]
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -165,32 +177,29 @@ def _sandwich(d, x, along, across, e0, e1, e2):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _time_dilu_factor(grid, diagonal, out, calls):
-    """Block D-ILU's factor over the grid's threads in node order (:func:`block_dilu`):
-    D_i = A_ii - B_h D_(i-1)^-1 B_h - B_v D_(i-Ns)^-1 B_v, each D_i inverted into ``out``
-    (9, L), A_ii from ``diagonal`` (9, L). Each node waits for its left neighbour's inverse:
-    a chain, as the sweep."""
-    ns, n, blocks, eh, ev = G.U(grid.ns), G.U(grid.n), grid.blocks, grid.eh, grid.ev
+def _time_dilu_factor(grid, diagonal, out, order, calls):
+    """Block D-ILU's factor over the grid's threads (:func:`block_dilu`): D_i = A_ii - B_h
+    D_(i-1)^-1 B_h - B_v D_(i-Ns)^-1 B_v, each D_i inverted into ``out`` (9, L), A_ii from
+    ``diagonal`` (9, L), node by node in ``order`` (as :func:`_time_sweep`)."""
+    ns, blocks, eh, ev = G.U(grid.ns), grid.blocks, grid.eh, grid.ev
     for _ in range(calls):
-        for row in range(n // ns):
-            for col in range(ns):
-                i = row * ns + col
-                d = (diagonal[0, i], diagonal[1, i], diagonal[2, i], diagonal[3, i],
-                     diagonal[4, i], diagonal[5, i], diagonal[6, i], diagonal[7, i],
-                     diagonal[8, i])
-                if col > 0:  # the thread from node i - 1, at column Ns + i - 1
-                    c, k = ns + i - G.ONE, i - G.ONE
-                    d = _sandwich(d, (out[0, k], out[1, k], out[2, k], out[3, k], out[4, k],
-                                      out[5, k], out[6, k], out[7, k], out[8, k]),
-                                  blocks[0, c], blocks[1, c], eh[0, c], eh[1, c], eh[2, c])
-                if row > 0:  # the thread from node i - Ns, at column i
-                    k = i - ns
-                    d = _sandwich(d, (out[0, k], out[1, k], out[2, k], out[3, k], out[4, k],
-                                      out[5, k], out[6, k], out[7, k], out[8, k]),
-                                  blocks[2, i], blocks[3, i], ev[0, i], ev[1, i], ev[2, i])
-                m = invert3(d)
-                for a in range(9):
-                    out[a, i] = m[a]
+        for i in order:
+            d = (diagonal[0, i], diagonal[1, i], diagonal[2, i], diagonal[3, i],
+                 diagonal[4, i], diagonal[5, i], diagonal[6, i], diagonal[7, i],
+                 diagonal[8, i])
+            if i % ns > 0:  # the thread from node i - 1, at column Ns + i - 1
+                c, k = ns + i - G.ONE, i - G.ONE
+                d = _sandwich(d, (out[0, k], out[1, k], out[2, k], out[3, k], out[4, k],
+                                  out[5, k], out[6, k], out[7, k], out[8, k]),
+                              blocks[0, c], blocks[1, c], eh[0, c], eh[1, c], eh[2, c])
+            if i >= ns:  # the thread from node i - Ns, at column i
+                k = i - ns
+                d = _sandwich(d, (out[0, k], out[1, k], out[2, k], out[3, k], out[4, k],
+                                  out[5, k], out[6, k], out[7, k], out[8, k]),
+                              blocks[2, i], blocks[3, i], ev[0, i], ev[1, i], ev[2, i])
+            m = invert3(d)
+            for a in range(9):
+                out[a, i] = m[a]
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -305,18 +314,30 @@ class GridParts(At):
         floor = {"traffic_us": traffic / measured["bandwidth_GB_s"] * 1e-3,
                  "two_sums_us": 2 * measured["sequential_sum_us"]}
         factor = best_us(lambda k: _time_factor(g, k))
-        sweep = best_us(lambda k: _time_sweep(g, r, z, k))
         inverse = g.block_inv[:, :count].T.reshape(count, 3, 3)  # (the factor's, just timed)
         diagonal = np.zeros_like(g.block_inv)
         diagonal[:, :count] = np.linalg.inv(inverse).reshape(count, 9).T
-        dilu = np.zeros_like(g.block_inv)
-        dilu_factor = best_us(lambda k: _time_dilu_factor(g, diagonal, dilu, k))
+        sweeps, factors, same = {}, {}, True
+        for name, along in (("node_order", False), ("wavefront", True)):
+            order = wavefront(int(g.ns), along)
+            zs, dilu = np.zeros_like(z), np.zeros_like(g.block_inv)
+            sweeps[name] = best_us(lambda k, zs=zs, order=order: _time_sweep(g, r, zs, order, k))
+            factors[name] = best_us(lambda k, dilu=dilu, order=order: _time_dilu_factor(
+                g, diagonal, dilu, order, k))
+            if name == "node_order":
+                z_first, dilu_first = zs.copy(), dilu.copy()
+            else:
+                same = bool(np.array_equal(zs, z_first) and np.array_equal(dilu, dilu_first))
+        sweep, dilu_factor = sweeps["node_order"], factors["node_order"]
         taken = {
             "t_s": state.time, "nodes": count, "row_length": length,
             "cg_iterations_per_step": per_step, "factor_us": factor,
             "iteration_parts_us": parts, "iteration_us": iteration,
             "iteration_bytes": traffic, "bounds": measured, "iteration_floor_us": floor,
             "gauss_seidel_sweep_us": sweep, "dilu_factor_us": dilu_factor,
+            "wavefront": {"gauss_seidel_sweep_us": sweeps["wavefront"],
+                          "dilu_factor_us": factors["wavefront"],
+                          "same_results_as_node_order": same},
             "cg_per_step_us": iteration * per_step}
         step = step_parts(e, state)  # (last: it advances the run)
         step["cg_us"] = iteration * step["cg_iterations_per_step"] + factor
@@ -459,15 +480,20 @@ def dilu_estimate(case: dict) -> dict:
     """A CG step with block D-ILU on the grid's threads, estimated from the parts timed
     alone [us]: an iteration is a forward and a backward sweep (each the forward sweep's
     time), the product, d . A d, the updates and the sums r . z and r . r (two sequential
-    chains); a step, the iterations from the warm start times that plus the factor. Beside
-    it the block-Jacobi step from the same parts."""
+    chains); a step, the iterations from the warm start times that plus the factor; the same
+    with the sweeps and the factor in wavefront order. Beside it the block-Jacobi step from
+    the same parts."""
     parts, bound = case["iteration_parts_us"], case["bounds"]["sequential_sum_us"]
-    iteration = (2 * case["gauss_seidel_sweep_us"] + parts["product"] + parts["dot_d_ad"]
-                 + parts["updates"] + 2 * bound)
+    rest = parts["product"] + parts["dot_d_ad"] + parts["updates"] + 2 * bound
+    iteration = 2 * case["gauss_seidel_sweep_us"] + rest
+    wave = case["wavefront"]
+    wave_iteration = 2 * wave["gauss_seidel_sweep_us"] + rest
     taken = case["preconditioners"]["iterations"]
     dilu, jacobi = taken["block_dilu_grid_threads"]["warm"], taken["block_jacobi"]["warm"]
     return {"iteration_us": iteration, "iterations": dilu,
             "step_us": dilu * iteration + case["dilu_factor_us"],
+            "wavefront_iteration_us": wave_iteration,
+            "wavefront_step_us": dilu * wave_iteration + wave["dilu_factor_us"],
             "block_jacobi_iterations": jacobi,
             "block_jacobi_step_us": jacobi * case["iteration_us"] + case["factor_us"]}
 
