@@ -317,17 +317,16 @@ class GridParts(At):
         inverse = g.block_inv[:, :count].T.reshape(count, 3, 3)  # (the factor's, just timed)
         diagonal = np.zeros_like(g.block_inv)
         diagonal[:, :count] = np.linalg.inv(inverse).reshape(count, 9).T
-        sweeps, factors, same = {}, {}, True
+        sweeps, factors, results = {}, {}, {}
         for name, along in (("node_order", False), ("wavefront", True)):
             order = wavefront(int(g.ns), along)
             zs, dilu = np.zeros_like(z), np.zeros_like(g.block_inv)
             sweeps[name] = best_us(lambda k, zs=zs, order=order: _time_sweep(g, r, zs, order, k))
             factors[name] = best_us(lambda k, dilu=dilu, order=order: _time_dilu_factor(
                 g, diagonal, dilu, order, k))
-            if name == "node_order":
-                z_first, dilu_first = zs.copy(), dilu.copy()
-            else:
-                same = bool(np.array_equal(zs, z_first) and np.array_equal(dilu, dilu_first))
+            results[name] = (zs, dilu)
+        same = all(np.array_equal(a, b)
+                   for a, b in zip(results["node_order"], results["wavefront"], strict=True))
         sweep, dilu_factor = sweeps["node_order"], factors["node_order"]
         taken = {
             "t_s": state.time, "nodes": count, "row_length": length,
