@@ -9,7 +9,8 @@ Each repeat empties a numba cache folder and runs, as separate processes, in ord
 4. ``bulletnet run deployment`` again -- the warm start.
 
 It reports each command's whole wall time (imports, model, compilation, run, recording) and
-the compile time the command itself prints, medians over the repeats, to
+the compile time the command itself prints (the package's bytecode cached as a user's
+interpreter caches it: :func:`common.user_env`), medians over the repeats, to
 ``OUT/first_run.json``, with the frozen yardstick (``yardstick.py``) timed at the start of
 each repeat, so that the warm run can be read as a ratio to it. Run it on an otherwise
 idle machine:
@@ -20,7 +21,6 @@ idle machine:
 from __future__ import annotations
 
 import json
-import os
 import platform
 import re
 import statistics
@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 
 import yardstick
-from common import machine, output_dir, parser
+from common import machine, output_dir, parser, user_env
 
 STEPS = {
     "deployment (first)": ["run", "deployment"],
@@ -47,7 +47,7 @@ COMPILED = re.compile(r"first run: ([0-9.]+) s compiling kernels")
 def timed_command(args: list[str], cwd: Path, cache: Path) -> tuple[float, float]:
     """(wall time [s], compile time the command printed [s], 0 if none) of ``bulletnet
     ARGS`` run as a process with the numba cache in ``cache``."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+    env = user_env(NUMBA_CACHE_DIR=str(cache))
     start = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "bulletnet.cli.main", *args, "--force",
                            "--out", "run.h5"], cwd=cwd, env=env, capture_output=True,

@@ -2,7 +2,8 @@
 
 Each run line of the README's command list runs as written (``--force`` added, so repeats
 overwrite) as a process, in a folder laid out as a clone's, with the kernels already
-compiled (a short run of each line first: compiling is what ``first_run.py`` measures).
+compiled and the package's bytecode cached (a short run of each line first: compiling is what
+``first_run.py`` measures; :func:`common.user_env`).
 Before each command the frozen yardstick (``yardstick.py``: a plain compiled loop of the 3 s
 deployment) is timed in this process, so every command's wall time is also given as a ratio
 to the yardstick measured beside it. With ``--repeats N`` the list runs N times over,
@@ -30,7 +31,7 @@ from pathlib import Path
 
 import h5py
 import yardstick
-from common import machine, output_dir, parser
+from common import machine, output_dir, parser, user_env
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -48,7 +49,8 @@ def run_command(args: list[str], folder: Path) -> float:
     """Wall time [s] of ``bulletnet ARGS --force`` as a process in ``folder``."""
     start = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "bulletnet.cli.main", *args, "--force"],
-                          cwd=folder, capture_output=True, text=True, timeout=7200)
+                          cwd=folder, env=user_env(), capture_output=True, text=True,
+                          timeout=7200)
     wall = time.perf_counter() - start
     if proc.returncode != 0:
         raise SystemExit(f"user_commands: bulletnet {shlex.join(args)}: {proc.stderr.strip()}")
