@@ -329,6 +329,43 @@ def test_wrap_of_a_flat_net_is_its_solid_angle():
         assert wrap_fraction(points, ns, np.zeros(3), 4000) == pytest.approx(expected, abs=2e-3)
 
 
+def test_wrap_cones_skip_no_ray_that_crosses_the_net():
+    # Reference: the Moller-Trumbore test of every ray against every triangle, in numpy (the
+    # same operations, in the same order, on whole arrays); the compiled count tests a ray
+    # only against the triangles whose cone of directions may hold it. Crumpled nets round
+    # the origin, some corners at it, some triangles seen across more than a right angle.
+    from bulletnet.analysis.capture_score import _covered, fibonacci_sphere, net_triangles
+
+    def brute(points, tri, rays):
+        a, b, c = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
+        e1, e2 = b - a, c - a
+        d = rays[:, None, :]
+        p = np.stack([d[..., 1] * e2[:, 2] - d[..., 2] * e2[:, 1],
+                      d[..., 2] * e2[:, 0] - d[..., 0] * e2[:, 2],
+                      d[..., 0] * e2[:, 1] - d[..., 1] * e2[:, 0]], axis=-1)
+        det = p[..., 0] * e1[:, 0] + p[..., 1] * e1[:, 1] + p[..., 2] * e1[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = -(a[:, 0] * p[..., 0] + a[:, 1] * p[..., 1] + a[:, 2] * p[..., 2]) / det
+            q = -np.stack([a[:, 1] * e1[:, 2] - a[:, 2] * e1[:, 1],
+                           a[:, 2] * e1[:, 0] - a[:, 0] * e1[:, 2],
+                           a[:, 0] * e1[:, 1] - a[:, 1] * e1[:, 0]], axis=-1)
+            v = (d[..., 0] * q[:, 0] + d[..., 1] * q[:, 1] + d[..., 2] * q[:, 2]) / det
+            t = (e2[:, 0] * q[:, 0] + e2[:, 1] * q[:, 1] + e2[:, 2] * q[:, 2]) / det
+        hit = ((np.abs(det) >= 1e-15) & (u >= 0.0) & (u <= 1.0) & (v >= 0.0) & (u + v <= 1.0)
+               & (t > 0.0))
+        return hit.any(axis=1).sum() / rays.shape[0]
+
+    rng = np.random.default_rng(7)
+    tri, rays = net_triangles(11), fibonacci_sphere(500)
+    covered = []
+    for k in range(40):
+        points = rng.normal(size=(121, 3)) * rng.uniform(0.2, 4.0) + rng.normal(size=3) * 3 * (k % 5)
+        points[rng.integers(121, size=k % 4)] = 0.0
+        covered.append(_covered(points, tri, rays))
+        assert covered[-1] == brute(points, tri, rays)
+    assert len(set(covered)) > 20 and max(covered) > 0.5  # the draws are not alike
+
+
 def test_implicit_law_ends_an_impact_inelastically():
     # Reference: backward Euler on Eq. 6 (a constraint solver's treatment): the touch-down
     # speed after one step is m u0 / (m + dt c + dt^2 k), ~1e-6 of u0 at dt = 1e-4, and the
