@@ -20,8 +20,11 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    iteration counts to the scene's tolerance, from the solver's warm start and from zero,
    with block Jacobi (the solver's), symmetric Gauss-Seidel, incomplete Cholesky (IC(0), on
    the matrix's own pattern: two triangular sweeps an application, as Gauss-Seidel's), block
-   D-ILU on the grid's threads alone (:func:`block_dilu`: what a forward and a backward
-   block sweep over the grid's stencils would apply) and, if ``pyamg`` is installed,
+   D-ILU on the grid's threads alone (:func:`block_dilu` over :func:`grid_neighbours`: what a
+   forward and a backward block sweep over the grid's stencils would apply), block D-ILU
+   over every direct coupling (:func:`direct_neighbours`: the threads and the cables' spans)
+   and the same on the system less its cables' rank-one parts, which the Woodbury identity
+   adds back (:func:`woodbury_dilu`) and, if ``pyamg`` is installed,
    smoothed-aggregation AMG (a V-cycle, with pyamg's Gauss-Seidel smoothing and with block
    Jacobi's) as preconditioners; and, on the grid, one forward block Gauss-Seidel sweep in
    node order over the grid's threads (what symmetric Gauss-Seidel with Eisenstat's trick
@@ -368,10 +371,15 @@ class PairSystemAt(At):
             integrators._apply_blocks(system, unit, column)
             matrix[:, k] = column.reshape(-1)
             unit.reshape(-1)[k] = 0.0
+        cables = a.cables
         return {"matrix": matrix, "warm": warm.reshape(-1),
                 "solver_iterations": int(w.cg_iterations[0]) - before,
                 "solution": w.dv.copy().reshape(-1), "tol": e.cg_tolerance,
-                "nodes_per_side": e.model.nodes_per_side}
+                "nodes_per_side": e.model.nodes_per_side,
+                "live_pairs": a.pairs[(w.along != 0.0) | (w.across != 0.0)].copy(),
+                "cables": None if cables is None else {
+                    name: np.array(getattr(cables, name)) for name in
+                    ("nodes", "start", "grad", "along")}}
 
 
 def pcg_iterations(matrix, b, x0, tol: float, precondition) -> int:
@@ -408,31 +416,87 @@ def incomplete_cholesky(a) -> np.ndarray:
     return lower
 
 
-def block_dilu(matrix, ns: int):
-    """Block D-ILU on the net grid's threads alone: (D + L) D^-1 (D + L^T), L the 3 x 3 blocks
-    of ``matrix`` (3N x 3N, node-major) between grid neighbours (nodes i and i - 1 in a row,
-    i and i - Ns: the first Ns^2 nodes, row by row), D_i = A_ii - sum over those lower
-    neighbours k of A_ik D_k^-1 A_ki (every other coupling, the cables', the tether's, the
-    corner threads', only through A_ii): what one forward and one backward block sweep over
-    the grid's stencils would apply. Returns the preconditioner as a function of r."""
+def grid_neighbours(n: int, ns: int) -> list[list[int]]:
+    """Each node's lower neighbours over the net grid's threads alone: i - 1 in a row and
+    i - Ns (the first Ns^2 nodes, row by row); none for the nodes past the grid."""
+    return [[] if i >= ns * ns else
+            [k for k in (i - 1, i - ns) if k >= 0 and (k == i - ns or i % ns)]
+            for i in range(n)]
+
+
+def direct_neighbours(n: int, taken: dict) -> list[list[int]]:
+    """Each node's lower neighbours over every direct coupling of the system: the threads with
+    a live block (the grid's, the corner threads, the tether) and the cables' spans (their
+    vertices in a row), not the cables' rank-one couplings between all their vertices."""
+    lower = [set() for _ in range(n)]
+    edges = [tuple(p) for p in taken["live_pairs"]]
+    cables = taken["cables"]
+    if cables is not None:
+        nodes, start = cables["nodes"], cables["start"]
+        edges += [(nodes[v], nodes[v + 1]) for c in range(len(start) - 1)
+                  for v in range(start[c], start[c + 1] - 1)]
+    for i, j in edges:
+        if i != j:
+            lower[max(i, j)].add(min(i, j))
+    return [sorted(k) for k in lower]
+
+
+def cable_rank_one(taken: dict, n: int) -> list[tuple[float, np.ndarray]]:
+    """The cables' rank-one parts of the system, along_c g_c g_c^T: (along_c [kg], g_c (3N,))
+    of each taut cable, g_c its length's gradient over the nodes (a node passed twice gets
+    both shares)."""
+    cables = taken["cables"]
+    if cables is None:
+        return []
+    parts = []
+    for c in range(len(cables["start"]) - 1):
+        if cables["along"][c] == 0.0:
+            continue
+        g = np.zeros((n, 3))
+        for v in range(cables["start"][c], cables["start"][c + 1]):
+            g[cables["nodes"][v]] += cables["grad"][v]
+        parts.append((float(cables["along"][c]), g.reshape(-1)))
+    return parts
+
+
+def block_dilu(matrix, lower: list[list[int]]):
+    """Block D-ILU over the couplings ``lower`` (each node's lower neighbours k < i):
+    (D + L) D^-1 (D + L^T), L the 3 x 3 blocks of ``matrix`` (3N x 3N, node-major) between
+    those neighbours, D_i = A_ii - sum over them of A_ik D_k^-1 A_ki (every other coupling
+    only through A_ii): what one forward and one backward block sweep would apply. Returns
+    the preconditioner as a function of r."""
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
 
     n = matrix.shape[0] // 3
     block = matrix.reshape(n, 3, n, 3)
     diagonal, inverse = np.zeros((n, 3, 3)), np.zeros((n, 3, 3))
-    lower = sp.lil_matrix(matrix.shape)
+    strict = sp.lil_matrix(matrix.shape)
     for i in range(n):
         d = block[i, :, i, :].copy()
-        below = [] if i >= ns * ns else [k for k in (i - 1, i - ns)
-                                          if k >= 0 and (k == i - ns or i % ns)]
-        for k in below:
+        for k in lower[i]:
             d -= block[i, :, k, :] @ inverse[k] @ block[k, :, i, :]
-            lower[3 * i:3 * i + 3, 3 * k:3 * k + 3] = block[i, :, k, :]
+            strict[3 * i:3 * i + 3, 3 * k:3 * k + 3] = block[i, :, k, :]
         diagonal[i], inverse[i] = d, np.linalg.inv(d)
     d = sp.block_diag(list(diagonal), format="csc")
-    forward, backward = splu((d + lower).tocsc()), splu((d + lower.T).tocsc())
+    forward, backward = splu((d + strict).tocsc()), splu((d + strict.T).tocsc())
     return lambda r: backward.solve(d @ forward.solve(r))
+
+
+def woodbury_dilu(matrix, lower: list[list[int]], rank_one: list[tuple[float, np.ndarray]]):
+    """Block D-ILU (:func:`block_dilu`) of the system less its cables' rank-one parts,
+    A0 = A - sum_c along_c g_c g_c^T, with those parts added back exactly by the Woodbury
+    identity: P^-1 = M0^-1 - W S^-1 W^T, W = M0^-1 G (one forward and backward sweep per taut
+    cable, once a step), S = diag(1 / along) + G^T W (C x C). An application is M0^-1's two
+    sweeps plus C dot products and C updates over the nodes."""
+    if not rank_one:
+        return block_dilu(matrix, lower)
+    g = np.stack([vector for _, vector in rank_one], axis=1)
+    along = np.array([value for value, _ in rank_one])
+    base = block_dilu(matrix - g @ np.diag(along) @ g.T, lower)
+    w = np.stack([base(g[:, c]) for c in range(g.shape[1])], axis=1)
+    s_inv = np.linalg.inv(np.diag(1.0 / along) + g.T @ w)
+    return lambda r: (lambda z: z - w @ (s_inv @ (g.T @ z)))(base(r))
 
 
 def preconditioners(taken: dict) -> dict:
@@ -453,7 +517,11 @@ def preconditioners(taken: dict) -> dict:
             upper, diagonal * spsolve_triangular(lower, r, lower=True), lower=False),
         "incomplete_cholesky": lambda r: spsolve_triangular(
             factor_t, spsolve_triangular(factor, r, lower=True), lower=False),
-        "block_dilu_grid_threads": block_dilu(taken["matrix"], taken["nodes_per_side"]),
+        "block_dilu_grid_threads": block_dilu(taken["matrix"],
+                                              grid_neighbours(n, taken["nodes_per_side"])),
+        "block_dilu_direct_couplings": block_dilu(taken["matrix"], direct_neighbours(n, taken)),
+        "block_dilu_direct_couplings_woodbury_cables": woodbury_dilu(
+            taken["matrix"], direct_neighbours(n, taken), cable_rank_one(taken, n)),
     }
     try:
         import pyamg
@@ -475,13 +543,16 @@ def preconditioners(taken: dict) -> dict:
         for name, f in methods.items()}}
 
 
-def dilu_estimate(case: dict) -> dict:
+def dilu_estimate(case: dict, cables: int) -> dict:
     """A CG step with block D-ILU on the grid's threads, estimated from the parts timed
     alone [us]: an iteration is a forward and a backward sweep (each the forward sweep's
     time), the product, d . A d, the updates and the sums r . z and r . r (two sequential
     chains); a step, the iterations from the warm start times that plus the factor; the same
     with the sweeps and the factor in wavefront order. Beside it the block-Jacobi step from
-    the same parts."""
+    the same parts, and the step with the ``cables`` taut cables' rank-one parts added back by
+    Woodbury (:func:`woodbury_dilu`, its iterations): each cable adds two sweeps to the factor
+    and to an iteration a dot product over its vertices (a few dozen) and an update of z over
+    every node, counted as half of the iteration's two updates."""
     parts, bound = case["iteration_parts_us"], case["bounds"]["sequential_sum_us"]
     rest = parts["product"] + parts["dot_d_ad"] + parts["updates"] + 2 * bound
     iteration = 2 * case["gauss_seidel_sweep_us"] + rest
@@ -489,12 +560,19 @@ def dilu_estimate(case: dict) -> dict:
     wave_iteration = 2 * wave["gauss_seidel_sweep_us"] + rest
     taken = case["preconditioners"]["iterations"]
     dilu, jacobi = taken["block_dilu_grid_threads"]["warm"], taken["block_jacobi"]["warm"]
+    woodbury = taken["block_dilu_direct_couplings_woodbury_cables"]["warm"]
+    extra = cables * parts["updates"] / 2.0
     return {"iteration_us": iteration, "iterations": dilu,
             "step_us": dilu * iteration + case["dilu_factor_us"],
             "wavefront_iteration_us": wave_iteration,
             "wavefront_step_us": dilu * wave_iteration + wave["dilu_factor_us"],
             "block_jacobi_iterations": jacobi,
-            "block_jacobi_step_us": jacobi * case["iteration_us"] + case["factor_us"]}
+            "block_jacobi_step_us": jacobi * case["iteration_us"] + case["factor_us"],
+            "woodbury_cables": cables, "woodbury_iterations": woodbury,
+            "woodbury_step_us": woodbury * (iteration + extra) + case["dilu_factor_us"]
+            + 2 * cables * case["gauss_seidel_sweep_us"],
+            "woodbury_wavefront_step_us": woodbury * (wave_iteration + extra)
+            + wave["dilu_factor_us"] + 2 * cables * wave["gauss_seidel_sweep_us"]}
 
 
 def main() -> int:
@@ -517,7 +595,8 @@ def main() -> int:
                observers=[system])
         doc["cases"][name] = {"scene": scene_name, "overrides": overrides, **parts.taken,
                               "preconditioners": preconditioners(system.taken)}
-        doc["cases"][name]["block_dilu_estimate"] = dilu_estimate(doc["cases"][name])
+        cables = len(cable_rank_one(system.taken, system.taken["warm"].size // 3))
+        doc["cases"][name]["block_dilu_estimate"] = dilu_estimate(doc["cases"][name], cables)
         print(f"{name}: {json.dumps(doc['cases'][name], indent=1)}", flush=True)
     yard.time()
     doc["yardsticks"] = yard.doc()
