@@ -31,8 +31,11 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    would run twice an iteration in place of the product and the preconditioning), and block
    D-ILU's factor in node order (a 3 x 3 product and inverse a node, a chain as the sweep),
    both also in wavefront order (:func:`wavefront`: by the grid's anti-diagonals, whose nodes
-   are independent; checked to give the same results, bit for bit); with them, the CG step
-   with block D-ILU estimated from the parts (:func:`dilu_estimate`);
+   are independent; checked to give the same results, bit for bit), and the sweep again on
+   the anti-diagonals regathered into contiguous rows (:func:`diagonal_rows`, so that a
+   diagonal's nodes go through the vector units together; its gather and scatter timed
+   apart; checked the same, bit for bit); with them, the CG step with block D-ILU estimated
+   from the parts (:func:`dilu_estimate`);
 4. the rest of the step at the grid path's state: the contact stages (node-debris and
    node-node, each called from a copy of the state) and then the whole step, the run's
    loop advanced over :data:`STEP_SPAN` (its CG iterations counted), so that the step's
@@ -151,6 +154,76 @@ def _time_sweep(grid, r, z, order, calls):
             z[0, i] = inv[0, i] * a0 + inv[1, i] * a1 + inv[2, i] * a2
             z[1, i] = inv[3, i] * a0 + inv[4, i] * a1 + inv[5, i] * a2
             z[2, i] = inv[6, i] * a0 + inv[7, i] * a1 + inv[8, i] * a2
+
+
+def diagonal_rows(grid, r) -> dict:
+    """The forward sweep's operands (:func:`_time_sweep`) regathered by anti-diagonals: each
+    row + column = d a row of Ns + 1 slots, node (row, column) at slot row + 1, slot 0 and
+    the absent nodes zero, one zero diagonal first; so that a node's left neighbour sits in
+    the diagonal before at the same slot and its lower neighbour at the slot before, and a
+    diagonal's nodes are contiguous. ``rows``: r (3, D, S), the inverse blocks (9, D, S), the
+    blocks of the thread from the left and from below, (along, across, e) (5, D, S) each;
+    ``position``: each grid node's flat index in a (D, S) row, for the gather and the
+    scatter (:func:`_time_regather`)."""
+    ns = int(grid.ns)
+    nodes = np.arange(ns * ns)
+    row, col = nodes // ns, nodes % ns
+    diagonals, slots = 2 * ns, ns + 1
+    position = (row + col + 1) * slots + row + 1
+    rd, inv = np.zeros((3, diagonals * slots)), np.zeros((9, diagonals * slots))
+    left, low = np.zeros((5, diagonals * slots)), np.zeros((5, diagonals * slots))
+    rd[:, position] = r[:, nodes]
+    inv[:, position] = grid.block_inv[:, nodes]
+    has = col > 0  # the thread from node i - 1 at column Ns + i - 1
+    c = ns + nodes[has] - 1
+    left[:, position[has]] = np.vstack([grid.blocks[0, c], grid.blocks[1, c], grid.eh[:, c]])
+    has = row > 0  # the thread from node i - Ns at column i
+    low[:, position[has]] = np.vstack([grid.blocks[2, nodes[has]], grid.blocks[3, nodes[has]],
+                                       grid.ev[:, nodes[has]]])
+    shape = (diagonals, slots)
+    return {"rd": rd.reshape(3, *shape), "inv": inv.reshape(9, *shape),
+            "left": left.reshape(5, *shape), "low": low.reshape(5, *shape),
+            "position": position.astype(np.uint64)}
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _time_sweep_diagonals(rd, inv, left, low, y, calls):
+    """:func:`_time_sweep` on :func:`diagonal_rows`: diagonal after diagonal, each
+    diagonal's slots in one loop over contiguous rows (which vectorizes); the same operations
+    on each node in the same order (an absent neighbour's term is a zero block's product,
+    and adding it changes nothing)."""
+    diagonals, slots = G.U(rd.shape[1]), G.U(rd.shape[2])
+    for _ in range(calls):
+        for d in range(G.ONE, diagonals):
+            p = d - G.ONE
+            for k in range(G.ONE, slots):
+                a0, a1, a2 = rd[0, d, k], rd[1, d, k], rd[2, d, k]
+                w0, w1, w2 = block_product(y[0, p, k], y[1, p, k], y[2, p, k], left[0, d, k],
+                                           left[1, d, k], left[2, d, k], left[3, d, k],
+                                           left[4, d, k])
+                a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
+                j = k - G.ONE
+                w0, w1, w2 = block_product(y[0, p, j], y[1, p, j], y[2, p, j], low[0, d, k],
+                                           low[1, d, k], low[2, d, k], low[3, d, k],
+                                           low[4, d, k])
+                a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
+                y[0, d, k] = inv[0, d, k] * a0 + inv[1, d, k] * a1 + inv[2, d, k] * a2
+                y[1, d, k] = inv[3, d, k] * a0 + inv[4, d, k] * a1 + inv[5, d, k] * a2
+                y[2, d, k] = inv[6, d, k] * a0 + inv[7, d, k] * a1 + inv[8, d, k] * a2
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _time_regather(r, rd, y, z, position, calls):
+    """What the diagonal layout costs a sweep if the CG's vectors stay in node order: r
+    gathered into its diagonal rows and the result scattered back into z."""
+    rf, yf = rd.reshape(3, -1), y.reshape(3, -1)
+    for _ in range(calls):
+        for a in range(3):
+            for i in range(position.shape[0]):
+                rf[a, position[i]] = r[a, i]
+        for a in range(3):
+            for i in range(position.shape[0]):
+                z[a, i] = yf[a, position[i]]
 
 
 def wavefront(ns: int, along_diagonals: bool) -> np.ndarray:
@@ -330,6 +403,13 @@ class GridParts(At):
             results[name] = (zs, dilu)
         same = all(np.array_equal(a, b)
                    for a, b in zip(results["node_order"], results["wavefront"], strict=True))
+        rows = diagonal_rows(g, r)
+        y, zd = np.zeros_like(rows["rd"]), np.zeros_like(z)
+        vector_sweep = best_us(lambda k: _time_sweep_diagonals(
+            rows["rd"], rows["inv"], rows["left"], rows["low"], y, k))
+        regather = best_us(lambda k: _time_regather(r, rows["rd"], y, zd, rows["position"], k))
+        grid_nodes = int(g.ns) ** 2
+        same_vector = np.array_equal(zd[:, :grid_nodes], results["node_order"][0][:, :grid_nodes])
         sweep, dilu_factor = sweeps["node_order"], factors["node_order"]
         taken = {
             "t_s": state.time, "nodes": count, "row_length": length,
@@ -340,6 +420,9 @@ class GridParts(At):
             "wavefront": {"gauss_seidel_sweep_us": sweeps["wavefront"],
                           "dilu_factor_us": factors["wavefront"],
                           "same_results_as_node_order": same},
+            "diagonal_rows": {"gauss_seidel_sweep_us": vector_sweep,
+                              "regather_us": regather,
+                              "same_results_as_node_order": bool(same_vector)},
             "cg_per_step_us": iteration * per_step}
         step = step_parts(e, state)  # (last: it advances the run)
         step["cg_us"] = iteration * step["cg_iterations_per_step"] + factor
@@ -552,12 +635,16 @@ def dilu_estimate(case: dict, cables: int) -> dict:
     the same parts, and the step with the ``cables`` taut cables' rank-one parts added back by
     Woodbury (:func:`woodbury_dilu`, its iterations): each cable adds two sweeps to the factor
     and to an iteration a dot product over its vertices (a few dozen) and an update of z over
-    every node, counted as half of the iteration's two updates."""
+    every node, counted as half of the iteration's two updates; that step also with each
+    sweep on the diagonal rows (:func:`_time_sweep_diagonals`) plus its gather and scatter
+    (the factor in wavefront order, scalar)."""
     parts, bound = case["iteration_parts_us"], case["bounds"]["sequential_sum_us"]
     rest = parts["product"] + parts["dot_d_ad"] + parts["updates"] + 2 * bound
     iteration = 2 * case["gauss_seidel_sweep_us"] + rest
     wave = case["wavefront"]
     wave_iteration = 2 * wave["gauss_seidel_sweep_us"] + rest
+    rows = case["diagonal_rows"]
+    vector = rows["gauss_seidel_sweep_us"] + rows["regather_us"]
     taken = case["preconditioners"]["iterations"]
     dilu, jacobi = taken["block_dilu_grid_threads"]["warm"], taken["block_jacobi"]["warm"]
     woodbury = taken["block_dilu_direct_couplings_woodbury_cables"]["warm"]
@@ -572,7 +659,9 @@ def dilu_estimate(case: dict, cables: int) -> dict:
             "woodbury_step_us": woodbury * (iteration + extra) + case["dilu_factor_us"]
             + 2 * cables * case["gauss_seidel_sweep_us"],
             "woodbury_wavefront_step_us": woodbury * (wave_iteration + extra)
-            + wave["dilu_factor_us"] + 2 * cables * wave["gauss_seidel_sweep_us"]}
+            + wave["dilu_factor_us"] + 2 * cables * wave["gauss_seidel_sweep_us"],
+            "woodbury_diagonal_rows_step_us": woodbury * (2 * vector + rest + extra)
+            + wave["dilu_factor_us"] + 2 * cables * vector}
 
 
 def main() -> int:
