@@ -359,7 +359,8 @@ def test_wrap_cones_skip_no_ray_that_crosses_the_net():
     tri, rays = net_triangles(11), fibonacci_sphere(500)
     covered = []
     for k in range(40):
-        points = rng.normal(size=(121, 3)) * rng.uniform(0.2, 4.0) + rng.normal(size=3) * 3 * (k % 5)
+        offset = rng.normal(size=3) * 3 * (k % 5)
+        points = rng.normal(size=(121, 3)) * rng.uniform(0.2, 4.0) + offset
         points[rng.integers(121, size=k % 4)] = 0.0
         covered.append(_covered(points, tri, rays))
         assert covered[-1] == brute(points, tri, rays)
