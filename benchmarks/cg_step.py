@@ -34,7 +34,8 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    are independent; checked to give the same results, bit for bit), and the sweep again on
    the anti-diagonals regathered into contiguous rows (:func:`diagonal_rows`, so that a
    diagonal's nodes go through the vector units together; its gather and scatter timed
-   apart; checked the same, bit for bit); with them, the CG step with block D-ILU estimated
+   apart; checked the same, bit for bit), those rows also in one buffer at compile-time
+   offsets (:func:`flat_sweep`; checked the same); with them, the CG step with block D-ILU estimated
    from the parts (:func:`dilu_estimate`);
 4. the rest of the step at the grid path's state: the contact stages (node-debris and
    node-node, each called from a copy of the state) and then the whole step, the run's
@@ -53,6 +54,7 @@ Also the frozen yardstick, timed at the start and the end. Writes ``OUT/cg_step.
 
 from __future__ import annotations
 
+import functools
 import json
 import time
 
@@ -210,6 +212,46 @@ def _time_sweep_diagonals(rd, inv, left, low, y, calls):
                 y[0, d, k] = inv[0, d, k] * a0 + inv[1, d, k] * a1 + inv[2, d, k] * a2
                 y[1, d, k] = inv[3, d, k] * a0 + inv[4, d, k] * a1 + inv[5, d, k] * a2
                 y[2, d, k] = inv[6, d, k] * a0 + inv[7, d, k] * a1 + inv[8, d, k] * a2
+
+
+FLAT_ROWS = (3, 9, 5, 5, 3)
+"""The rows of :func:`flat_sweep`'s buffer, in order: r, the inverse blocks, the left and the
+lower threads' blocks, the result y."""
+
+
+@functools.cache
+def flat_sweep(slots: int, diagonals: int):
+    """:func:`_time_sweep_diagonals` on one flat buffer (:data:`FLAT_ROWS`, each row
+    ``diagonals`` x ``slots`` long) whose rows' offsets are compile-time constants, so that
+    the compiler knows every distance between the rows and between a slot and the two it
+    waits for (one diagonal's row back): the same operations on each node in the same
+    order, without runtime checks that the rows do not overlap."""
+    n, s, d_end = slots * diagonals, G.U(slots), G.U(diagonals)
+    o = tuple(G.U(row * n) for row in range(sum(FLAT_ROWS)))  # each row's offset
+    # r: rows 0-2, the inverse blocks 3-11, the left thread 12-16, the lower 17-21, y 22-24
+
+    @nb.njit(cache=True, error_model="numpy")
+    def sweep(b, calls):
+        for _ in range(calls):
+            for d in range(G.ONE, d_end):
+                for k in range(G.ONE, s):
+                    f = d * s + k
+                    g = f - s
+                    h = g - G.ONE
+                    a0, a1, a2 = b[o[0] + f], b[o[1] + f], b[o[2] + f]
+                    w0, w1, w2 = block_product(b[o[22] + g], b[o[23] + g], b[o[24] + g],
+                                               b[o[12] + f], b[o[13] + f], b[o[14] + f],
+                                               b[o[15] + f], b[o[16] + f])
+                    a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
+                    w0, w1, w2 = block_product(b[o[22] + h], b[o[23] + h], b[o[24] + h],
+                                               b[o[17] + f], b[o[18] + f], b[o[19] + f],
+                                               b[o[20] + f], b[o[21] + f])
+                    a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
+                    b[o[22] + f] = b[o[3] + f] * a0 + b[o[4] + f] * a1 + b[o[5] + f] * a2
+                    b[o[23] + f] = b[o[6] + f] * a0 + b[o[7] + f] * a1 + b[o[8] + f] * a2
+                    b[o[24] + f] = b[o[9] + f] * a0 + b[o[10] + f] * a1 + b[o[11] + f] * a2
+
+    return sweep
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -410,6 +452,13 @@ class GridParts(At):
         regather = best_us(lambda k: _time_regather(r, rows["rd"], y, zd, rows["position"], k))
         grid_nodes = int(g.ns) ** 2
         same_vector = np.array_equal(zd[:, :grid_nodes], results["node_order"][0][:, :grid_nodes])
+        diagonals, slots = rows["rd"].shape[1:]
+        buffer = np.concatenate([rows[name].reshape(k, -1) for name, k in (
+            ("rd", 3), ("inv", 9), ("left", 5), ("low", 5))] + [np.zeros((3, diagonals * slots))])
+        sweep_flat = flat_sweep(slots, diagonals)
+        flat_us = best_us(lambda k: sweep_flat(buffer.reshape(-1), k))
+        y_flat = buffer[-3:][:, rows["position"]]
+        same_flat = np.array_equal(y_flat, results["node_order"][0][:, :grid_nodes])
         sweep, dilu_factor = sweeps["node_order"], factors["node_order"]
         taken = {
             "t_s": state.time, "nodes": count, "row_length": length,
@@ -422,7 +471,9 @@ class GridParts(At):
                           "same_results_as_node_order": same},
             "diagonal_rows": {"gauss_seidel_sweep_us": vector_sweep,
                               "regather_us": regather,
-                              "same_results_as_node_order": bool(same_vector)},
+                              "same_results_as_node_order": bool(same_vector),
+                              "one_buffer_sweep_us": flat_us,
+                              "one_buffer_same_results_as_node_order": bool(same_flat)},
             "cg_per_step_us": iteration * per_step}
         step = step_parts(e, state)  # (last: it advances the run)
         step["cg_us"] = iteration * step["cg_iterations_per_step"] + factor
@@ -636,8 +687,9 @@ def dilu_estimate(case: dict, cables: int) -> dict:
     Woodbury (:func:`woodbury_dilu`, its iterations): each cable adds two sweeps to the factor
     and to an iteration a dot product over its vertices (a few dozen) and an update of z over
     every node, counted as half of the iteration's two updates; that step also with each
-    sweep on the diagonal rows (:func:`_time_sweep_diagonals`) plus its gather and scatter
-    (the factor in wavefront order, scalar)."""
+    sweep on the diagonal rows (:func:`_time_sweep_diagonals`), and on them in one buffer
+    (:func:`flat_sweep`), each plus its gather and scatter (the factor in wavefront order,
+    scalar)."""
     parts, bound = case["iteration_parts_us"], case["bounds"]["sequential_sum_us"]
     rest = parts["product"] + parts["dot_d_ad"] + parts["updates"] + 2 * bound
     iteration = 2 * case["gauss_seidel_sweep_us"] + rest
@@ -645,6 +697,7 @@ def dilu_estimate(case: dict, cables: int) -> dict:
     wave_iteration = 2 * wave["gauss_seidel_sweep_us"] + rest
     rows = case["diagonal_rows"]
     vector = rows["gauss_seidel_sweep_us"] + rows["regather_us"]
+    one_buffer = rows["one_buffer_sweep_us"] + rows["regather_us"]
     taken = case["preconditioners"]["iterations"]
     dilu, jacobi = taken["block_dilu_grid_threads"]["warm"], taken["block_jacobi"]["warm"]
     woodbury = taken["block_dilu_direct_couplings_woodbury_cables"]["warm"]
@@ -661,7 +714,9 @@ def dilu_estimate(case: dict, cables: int) -> dict:
             "woodbury_wavefront_step_us": woodbury * (wave_iteration + extra)
             + wave["dilu_factor_us"] + 2 * cables * wave["gauss_seidel_sweep_us"],
             "woodbury_diagonal_rows_step_us": woodbury * (2 * vector + rest + extra)
-            + wave["dilu_factor_us"] + 2 * cables * vector}
+            + wave["dilu_factor_us"] + 2 * cables * vector,
+            "woodbury_one_buffer_step_us": woodbury * (2 * one_buffer + rest + extra)
+            + wave["dilu_factor_us"] + 2 * cables * one_buffer}
 
 
 def main() -> int:
