@@ -333,7 +333,9 @@ def test_wrap_cones_skip_no_ray_that_crosses_the_net():
     # Reference: the Moller-Trumbore test of every ray against every triangle, in numpy (the
     # same operations, in the same order, on whole arrays); the compiled count tests a ray
     # only against the triangles whose cone of directions may hold it. Crumpled nets round
-    # the origin, some corners at it, some triangles seen across more than a right angle.
+    # the origin, some corners at it, some triangles seen across more than a right angle, and
+    # nets far off, whose triangles' cones are narrow (a cone 0.02 too narrow in its cosine
+    # fails here).
     from bulletnet.analysis.capture_score import _covered, fibonacci_sphere, net_triangles
 
     def brute(points, tri, rays):
