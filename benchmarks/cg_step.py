@@ -35,7 +35,8 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    the anti-diagonals regathered into contiguous rows (:func:`diagonal_rows`, so that a
    diagonal's nodes go through the vector units together; its gather and scatter timed
    apart; checked the same, bit for bit), those rows also in one buffer at compile-time
-   offsets (:func:`flat_sweep`; checked the same); with them, the CG step with block D-ILU estimated
+   offsets (:func:`flat_sweep`, and the factor on them, :func:`flat_factor`; both checked
+   the same); with them, the CG step with block D-ILU estimated
    from the parts (:func:`dilu_estimate`);
 4. the rest of the step at the grid path's state: the contact stages (node-debris and
    node-node, each called from a copy of the state) and then the whole step, the run's
@@ -254,6 +255,51 @@ def flat_sweep(slots: int, diagonals: int):
     return sweep
 
 
+FACTOR_ROWS = (9, 5, 5, 9)
+"""The rows of :func:`flat_factor`'s buffer, in order: the diagonal blocks A_ii, the left and
+the lower threads' blocks, the inverse blocks D_i^-1 it writes."""
+
+
+@functools.cache
+def flat_factor(slots: int, diagonals: int):
+    """Block D-ILU's factor (:func:`_time_dilu_factor`) on the diagonal rows in one flat
+    buffer (:data:`FACTOR_ROWS`, offsets known to the compiler, as :func:`flat_sweep`): each
+    slot's D = A_ii less the left and the lower thread's sandwich of their nodes' D^-1, then
+    inverted; the same operations on each node in the same order (an absent neighbour's
+    block is zero, its sandwich zero; the empty slots hold the identity, so every inverse
+    stays finite)."""
+    n, s, d_end = slots * diagonals, G.U(slots), G.U(diagonals)
+    o = tuple(G.U(row * n) for row in range(sum(FACTOR_ROWS)))  # each row's offset
+    # A_ii: rows 0-8, the left thread 9-13, the lower 14-18, D^-1 19-27
+
+    @nb.njit(cache=True, error_model="numpy")
+    def factor(b, calls):
+        for _ in range(calls):
+            for d in range(G.ONE, d_end):
+                for k in range(G.ONE, s):
+                    f = d * s + k
+                    g = f - s
+                    h = g - G.ONE
+                    m = (b[o[0] + f], b[o[1] + f], b[o[2] + f], b[o[3] + f], b[o[4] + f],
+                         b[o[5] + f], b[o[6] + f], b[o[7] + f], b[o[8] + f])
+                    m = _sandwich(m, (b[o[19] + g], b[o[20] + g], b[o[21] + g], b[o[22] + g],
+                                      b[o[23] + g], b[o[24] + g], b[o[25] + g], b[o[26] + g],
+                                      b[o[27] + g]),
+                                  b[o[9] + f], b[o[10] + f], b[o[11] + f], b[o[12] + f],
+                                  b[o[13] + f])
+                    m = _sandwich(m, (b[o[19] + h], b[o[20] + h], b[o[21] + h], b[o[22] + h],
+                                      b[o[23] + h], b[o[24] + h], b[o[25] + h], b[o[26] + h],
+                                      b[o[27] + h]),
+                                  b[o[14] + f], b[o[15] + f], b[o[16] + f], b[o[17] + f],
+                                  b[o[18] + f])
+                    m = invert3(m)
+                    b[o[19] + f], b[o[20] + f], b[o[21] + f] = m[0], m[1], m[2]
+                    b[o[22] + f], b[o[23] + f], b[o[24] + f] = m[3], m[4], m[5]
+                    b[o[25] + f], b[o[26] + f], b[o[27] + f] = m[6], m[7], m[8]
+
+    return factor
+
+
 @nb.njit(cache=True, error_model="numpy")
 def _time_regather(r, rd, y, z, position, calls):
     """What the diagonal layout costs a sweep if the CG's vectors stay in node order: r
@@ -459,6 +505,15 @@ class GridParts(At):
         flat_us = best_us(lambda k: sweep_flat(buffer.reshape(-1), k))
         y_flat = buffer[-3:][:, rows["position"]]
         same_flat = np.array_equal(y_flat, results["node_order"][0][:, :grid_nodes])
+        identity = np.tile(np.eye(3).reshape(9, 1), diagonals * slots)  # the empty slots'
+        blocks = identity.copy()
+        blocks[:, rows["position"]] = diagonal[:, :grid_nodes]
+        factor_buffer = np.concatenate([blocks, rows["left"].reshape(5, -1),
+                                        rows["low"].reshape(5, -1), identity])
+        factor_flat = flat_factor(slots, diagonals)
+        flat_factor_us = best_us(lambda k: factor_flat(factor_buffer.reshape(-1), k))
+        same_factor = np.array_equal(factor_buffer[-9:][:, rows["position"]],
+                                     results["node_order"][1][:, :grid_nodes])
         sweep, dilu_factor = sweeps["node_order"], factors["node_order"]
         taken = {
             "t_s": state.time, "nodes": count, "row_length": length,
@@ -473,7 +528,9 @@ class GridParts(At):
                               "regather_us": regather,
                               "same_results_as_node_order": bool(same_vector),
                               "one_buffer_sweep_us": flat_us,
-                              "one_buffer_same_results_as_node_order": bool(same_flat)},
+                              "one_buffer_same_results_as_node_order": bool(same_flat),
+                              "one_buffer_dilu_factor_us": flat_factor_us,
+                              "one_buffer_factor_same_as_node_order": bool(same_factor)},
             "cg_per_step_us": iteration * per_step}
         step = step_parts(e, state)  # (last: it advances the run)
         step["cg_us"] = iteration * step["cg_iterations_per_step"] + factor
@@ -687,9 +744,9 @@ def dilu_estimate(case: dict, cables: int) -> dict:
     Woodbury (:func:`woodbury_dilu`, its iterations): each cable adds two sweeps to the factor
     and to an iteration a dot product over its vertices (a few dozen) and an update of z over
     every node, counted as half of the iteration's two updates; that step also with each
-    sweep on the diagonal rows (:func:`_time_sweep_diagonals`), and on them in one buffer
-    (:func:`flat_sweep`), each plus its gather and scatter (the factor in wavefront order,
-    scalar)."""
+    sweep on the diagonal rows (:func:`_time_sweep_diagonals`; the factor in wavefront
+    order, scalar), and on them in one buffer (:func:`flat_sweep`, the factor too:
+    :func:`flat_factor`), each sweep plus its gather and scatter."""
     parts, bound = case["iteration_parts_us"], case["bounds"]["sequential_sum_us"]
     rest = parts["product"] + parts["dot_d_ad"] + parts["updates"] + 2 * bound
     iteration = 2 * case["gauss_seidel_sweep_us"] + rest
@@ -716,7 +773,7 @@ def dilu_estimate(case: dict, cables: int) -> dict:
             "woodbury_diagonal_rows_step_us": woodbury * (2 * vector + rest + extra)
             + wave["dilu_factor_us"] + 2 * cables * vector,
             "woodbury_one_buffer_step_us": woodbury * (2 * one_buffer + rest + extra)
-            + wave["dilu_factor_us"] + 2 * cables * one_buffer}
+            + rows["one_buffer_dilu_factor_us"] + 2 * cables * one_buffer}
 
 
 def main() -> int:
