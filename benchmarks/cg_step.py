@@ -35,9 +35,8 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    the anti-diagonals regathered into contiguous rows (:func:`diagonal_rows`, so that a
    diagonal's nodes go through the vector units together; its gather and scatter timed
    apart; checked the same, bit for bit), those rows also in one buffer at compile-time
-   offsets (:func:`flat_sweep`, and the factor on them, :func:`flat_factor`; both checked
-   the same); with them, the CG step with block D-ILU estimated
-   from the parts (:func:`dilu_estimate`);
+   offsets (:func:`one_buffer`, the sweep and the factor; both checked the same); with
+   them, the CG step with block D-ILU estimated from the parts (:func:`dilu_estimate`);
 4. the rest of the step at the grid path's state: the contact stages (node-debris and
    node-node, each called from a copy of the state) and then the whole step, the run's
    loop advanced over :data:`STEP_SPAN` (its CG iterations counted), so that the step's
@@ -215,89 +214,69 @@ def _time_sweep_diagonals(rd, inv, left, low, y, calls):
                 y[2, d, k] = inv[6, d, k] * a0 + inv[7, d, k] * a1 + inv[8, d, k] * a2
 
 
-FLAT_ROWS = (3, 9, 5, 5, 3)
-"""The rows of :func:`flat_sweep`'s buffer, in order: r, the inverse blocks, the left and the
-lower threads' blocks, the result y."""
+ONE_BUFFER_ROWS = {"sweep": 25, "factor": 28}
+"""The rows of each :func:`one_buffer` pass's buffer: for the sweep r 0-2, the inverse
+blocks 3-11, the left thread's block 12-16, the lower thread's 17-21 and the result y
+22-24; for the factor the diagonal blocks A_ii 0-8, the left thread's block 9-13, the lower
+thread's 14-18 and the inverse blocks D^-1 19-27."""
 
 
 @functools.cache
-def flat_sweep(slots: int, diagonals: int):
-    """:func:`_time_sweep_diagonals` on one flat buffer (:data:`FLAT_ROWS`, each row
-    ``diagonals`` x ``slots`` long) whose rows' offsets are compile-time constants, so that
-    the compiler knows every distance between the rows and between a slot and the two it
-    waits for (one diagonal's row back): the same operations on each node in the same
-    order, without runtime checks that the rows do not overlap."""
+def one_buffer(slots: int, diagonals: int, kind: str):
+    """The forward sweep (``kind`` "sweep", :func:`_time_sweep_diagonals`) or block D-ILU's
+    factor ("factor", :func:`_time_dilu_factor`: D = A_ii less the left and the lower
+    thread's sandwich of their nodes' D^-1, inverted) on the diagonal rows
+    (:func:`diagonal_rows`) in one flat buffer (:data:`ONE_BUFFER_ROWS`), each row
+    ``diagonals`` x ``slots`` long, at offsets that are compile-time constants (numba freezes
+    a closure's integers), so that the compiler knows every distance between the rows and
+    between a slot and the two it waits for (one diagonal's row back) and needs no runtime
+    check that the rows do not overlap: diagonal after diagonal, the same operations on each
+    node in the same order as node order (an absent neighbour's block is zero, and so is its
+    term; the factor's empty slots hold the identity, so every inverse stays finite)."""
     n, s, d_end = slots * diagonals, G.U(slots), G.U(diagonals)
-    o = tuple(G.U(row * n) for row in range(sum(FLAT_ROWS)))  # each row's offset
-    # r: rows 0-2, the inverse blocks 3-11, the left thread 12-16, the lower 17-21, y 22-24
+    o = tuple(G.U(row * n) for row in range(max(ONE_BUFFER_ROWS.values())))  # row offsets
+    sweep = kind == "sweep"
 
     @nb.njit(cache=True, error_model="numpy")
-    def sweep(b, calls):
+    def run(b, calls):
         for _ in range(calls):
             for d in range(G.ONE, d_end):
                 for k in range(G.ONE, s):
                     f = d * s + k
-                    g = f - s
-                    h = g - G.ONE
-                    a0, a1, a2 = b[o[0] + f], b[o[1] + f], b[o[2] + f]
-                    w0, w1, w2 = block_product(b[o[22] + g], b[o[23] + g], b[o[24] + g],
-                                               b[o[12] + f], b[o[13] + f], b[o[14] + f],
-                                               b[o[15] + f], b[o[16] + f])
-                    a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
-                    w0, w1, w2 = block_product(b[o[22] + h], b[o[23] + h], b[o[24] + h],
-                                               b[o[17] + f], b[o[18] + f], b[o[19] + f],
-                                               b[o[20] + f], b[o[21] + f])
-                    a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
-                    b[o[22] + f] = b[o[3] + f] * a0 + b[o[4] + f] * a1 + b[o[5] + f] * a2
-                    b[o[23] + f] = b[o[6] + f] * a0 + b[o[7] + f] * a1 + b[o[8] + f] * a2
-                    b[o[24] + f] = b[o[9] + f] * a0 + b[o[10] + f] * a1 + b[o[11] + f] * a2
+                    g = f - s  # the left neighbour's slot
+                    h = g - G.ONE  # the lower neighbour's
+                    if sweep:
+                        a0, a1, a2 = b[o[0] + f], b[o[1] + f], b[o[2] + f]
+                        w0, w1, w2 = block_product(
+                            b[o[22] + g], b[o[23] + g], b[o[24] + g], b[o[12] + f],
+                            b[o[13] + f], b[o[14] + f], b[o[15] + f], b[o[16] + f])
+                        a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
+                        w0, w1, w2 = block_product(
+                            b[o[22] + h], b[o[23] + h], b[o[24] + h], b[o[17] + f],
+                            b[o[18] + f], b[o[19] + f], b[o[20] + f], b[o[21] + f])
+                        a0, a1, a2 = a0 + w0, a1 + w1, a2 + w2
+                        b[o[22] + f] = b[o[3] + f] * a0 + b[o[4] + f] * a1 + b[o[5] + f] * a2
+                        b[o[23] + f] = b[o[6] + f] * a0 + b[o[7] + f] * a1 + b[o[8] + f] * a2
+                        b[o[24] + f] = b[o[9] + f] * a0 + b[o[10] + f] * a1 + b[o[11] + f] * a2
+                    else:
+                        m = (b[o[0] + f], b[o[1] + f], b[o[2] + f], b[o[3] + f], b[o[4] + f],
+                             b[o[5] + f], b[o[6] + f], b[o[7] + f], b[o[8] + f])
+                        m = _sandwich(m, (b[o[19] + g], b[o[20] + g], b[o[21] + g],
+                                          b[o[22] + g], b[o[23] + g], b[o[24] + g],
+                                          b[o[25] + g], b[o[26] + g], b[o[27] + g]),
+                                      b[o[9] + f], b[o[10] + f], b[o[11] + f], b[o[12] + f],
+                                      b[o[13] + f])
+                        m = _sandwich(m, (b[o[19] + h], b[o[20] + h], b[o[21] + h],
+                                          b[o[22] + h], b[o[23] + h], b[o[24] + h],
+                                          b[o[25] + h], b[o[26] + h], b[o[27] + h]),
+                                      b[o[14] + f], b[o[15] + f], b[o[16] + f], b[o[17] + f],
+                                      b[o[18] + f])
+                        m = invert3(m)
+                        b[o[19] + f], b[o[20] + f], b[o[21] + f] = m[0], m[1], m[2]
+                        b[o[22] + f], b[o[23] + f], b[o[24] + f] = m[3], m[4], m[5]
+                        b[o[25] + f], b[o[26] + f], b[o[27] + f] = m[6], m[7], m[8]
 
-    return sweep
-
-
-FACTOR_ROWS = (9, 5, 5, 9)
-"""The rows of :func:`flat_factor`'s buffer, in order: the diagonal blocks A_ii, the left and
-the lower threads' blocks, the inverse blocks D_i^-1 it writes."""
-
-
-@functools.cache
-def flat_factor(slots: int, diagonals: int):
-    """Block D-ILU's factor (:func:`_time_dilu_factor`) on the diagonal rows in one flat
-    buffer (:data:`FACTOR_ROWS`, offsets known to the compiler, as :func:`flat_sweep`): each
-    slot's D = A_ii less the left and the lower thread's sandwich of their nodes' D^-1, then
-    inverted; the same operations on each node in the same order (an absent neighbour's
-    block is zero, its sandwich zero; the empty slots hold the identity, so every inverse
-    stays finite)."""
-    n, s, d_end = slots * diagonals, G.U(slots), G.U(diagonals)
-    o = tuple(G.U(row * n) for row in range(sum(FACTOR_ROWS)))  # each row's offset
-    # A_ii: rows 0-8, the left thread 9-13, the lower 14-18, D^-1 19-27
-
-    @nb.njit(cache=True, error_model="numpy")
-    def factor(b, calls):
-        for _ in range(calls):
-            for d in range(G.ONE, d_end):
-                for k in range(G.ONE, s):
-                    f = d * s + k
-                    g = f - s
-                    h = g - G.ONE
-                    m = (b[o[0] + f], b[o[1] + f], b[o[2] + f], b[o[3] + f], b[o[4] + f],
-                         b[o[5] + f], b[o[6] + f], b[o[7] + f], b[o[8] + f])
-                    m = _sandwich(m, (b[o[19] + g], b[o[20] + g], b[o[21] + g], b[o[22] + g],
-                                      b[o[23] + g], b[o[24] + g], b[o[25] + g], b[o[26] + g],
-                                      b[o[27] + g]),
-                                  b[o[9] + f], b[o[10] + f], b[o[11] + f], b[o[12] + f],
-                                  b[o[13] + f])
-                    m = _sandwich(m, (b[o[19] + h], b[o[20] + h], b[o[21] + h], b[o[22] + h],
-                                      b[o[23] + h], b[o[24] + h], b[o[25] + h], b[o[26] + h],
-                                      b[o[27] + h]),
-                                  b[o[14] + f], b[o[15] + f], b[o[16] + f], b[o[17] + f],
-                                  b[o[18] + f])
-                    m = invert3(m)
-                    b[o[19] + f], b[o[20] + f], b[o[21] + f] = m[0], m[1], m[2]
-                    b[o[22] + f], b[o[23] + f], b[o[24] + f] = m[3], m[4], m[5]
-                    b[o[25] + f], b[o[26] + f], b[o[27] + f] = m[6], m[7], m[8]
-
-    return factor
+    return run
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -501,7 +480,7 @@ class GridParts(At):
         diagonals, slots = rows["rd"].shape[1:]
         buffer = np.concatenate([rows[name].reshape(k, -1) for name, k in (
             ("rd", 3), ("inv", 9), ("left", 5), ("low", 5))] + [np.zeros((3, diagonals * slots))])
-        sweep_flat = flat_sweep(slots, diagonals)
+        sweep_flat = one_buffer(slots, diagonals, "sweep")
         flat_us = best_us(lambda k: sweep_flat(buffer.reshape(-1), k))
         y_flat = buffer[-3:][:, rows["position"]]
         same_flat = np.array_equal(y_flat, results["node_order"][0][:, :grid_nodes])
@@ -510,7 +489,7 @@ class GridParts(At):
         blocks[:, rows["position"]] = diagonal[:, :grid_nodes]
         factor_buffer = np.concatenate([blocks, rows["left"].reshape(5, -1),
                                         rows["low"].reshape(5, -1), identity])
-        factor_flat = flat_factor(slots, diagonals)
+        factor_flat = one_buffer(slots, diagonals, "factor")
         flat_factor_us = best_us(lambda k: factor_flat(factor_buffer.reshape(-1), k))
         same_factor = np.array_equal(factor_buffer[-9:][:, rows["position"]],
                                      results["node_order"][1][:, :grid_nodes])
@@ -745,8 +724,8 @@ def dilu_estimate(case: dict, cables: int) -> dict:
     and to an iteration a dot product over its vertices (a few dozen) and an update of z over
     every node, counted as half of the iteration's two updates; that step also with each
     sweep on the diagonal rows (:func:`_time_sweep_diagonals`; the factor in wavefront
-    order, scalar), and on them in one buffer (:func:`flat_sweep`, the factor too:
-    :func:`flat_factor`), each sweep plus its gather and scatter."""
+    order, scalar), and on them in one buffer (:func:`one_buffer`, the factor too), each
+    sweep plus its gather and scatter."""
     parts, bound = case["iteration_parts_us"], case["bounds"]["sequential_sum_us"]
     rest = parts["product"] + parts["dot_d_ad"] + parts["updates"] + 2 * bound
     iteration = 2 * case["gauss_seidel_sweep_us"] + rest
