@@ -435,6 +435,43 @@ def bounds(working_set_bytes: int, count: int) -> dict:
             "reordered_sum_us": best_us(lambda k: _reordered(terms, count, k))}
 
 
+def diagonal_parts(grid, r, diagonal, z_node_order, dilu_node_order) -> dict:
+    """The forward sweep and block D-ILU's factor on the grid's anti-diagonal rows
+    (:func:`diagonal_rows`), timed [us] and checked against node order's results
+    (``z_node_order`` (3, L) from :func:`_time_sweep`, ``dilu_node_order`` (9, L) from
+    :func:`_time_dilu_factor` on the diagonal blocks ``diagonal``): the sweep on separate
+    rows (:func:`_time_sweep_diagonals`) with its gather and scatter
+    (:func:`_time_regather`), then the sweep and the factor in one buffer
+    (:func:`one_buffer`)."""
+    rows, nodes = diagonal_rows(grid, r), int(grid.ns) ** 2
+    position = rows["position"]
+    diagonals, slots = rows["rd"].shape[1:]
+    y, z = np.zeros_like(rows["rd"]), np.zeros_like(r)
+    sweep = best_us(lambda k: _time_sweep_diagonals(rows["rd"], rows["inv"], rows["left"],
+                                                    rows["low"], y, k))
+    regather = best_us(lambda k: _time_regather(r, rows["rd"], y, z, position, k))
+    buffer = np.concatenate([rows[name].reshape(k, -1) for name, k in (
+        ("rd", 3), ("inv", 9), ("left", 5), ("low", 5))] + [np.zeros((3, diagonals * slots))])
+    sweep_flat = one_buffer(slots, diagonals, "sweep")
+    flat_us = best_us(lambda k: sweep_flat(buffer.reshape(-1), k))
+    identity = np.tile(np.eye(3).reshape(9, 1), diagonals * slots)  # in every empty slot
+    blocks = identity.copy()
+    blocks[:, position] = diagonal[:, :nodes]
+    factor_buffer = np.concatenate([blocks, rows["left"].reshape(5, -1),
+                                    rows["low"].reshape(5, -1), identity])
+    factor_flat = one_buffer(slots, diagonals, "factor")
+    factor_us = best_us(lambda k: factor_flat(factor_buffer.reshape(-1), k))
+    expected_z, expected_dilu = z_node_order[:, :nodes], dilu_node_order[:, :nodes]
+    return {"gauss_seidel_sweep_us": sweep, "regather_us": regather,
+            "same_results_as_node_order": bool(np.array_equal(z[:, :nodes], expected_z)),
+            "one_buffer_sweep_us": flat_us,
+            "one_buffer_same_results_as_node_order": bool(
+                np.array_equal(buffer[-3:][:, position], expected_z)),
+            "one_buffer_dilu_factor_us": factor_us,
+            "one_buffer_factor_same_as_node_order": bool(
+                np.array_equal(factor_buffer[-9:][:, position], expected_dilu))}
+
+
 class GridParts(At):
     """At the first frame at or after ``at`` [s]: a CG iteration's parts timed on the grid
     path (see the module doc); then stops the run."""
@@ -470,29 +507,7 @@ class GridParts(At):
             results[name] = (zs, dilu)
         same = all(np.array_equal(a, b)
                    for a, b in zip(results["node_order"], results["wavefront"], strict=True))
-        rows = diagonal_rows(g, r)
-        y, zd = np.zeros_like(rows["rd"]), np.zeros_like(z)
-        vector_sweep = best_us(lambda k: _time_sweep_diagonals(
-            rows["rd"], rows["inv"], rows["left"], rows["low"], y, k))
-        regather = best_us(lambda k: _time_regather(r, rows["rd"], y, zd, rows["position"], k))
-        grid_nodes = int(g.ns) ** 2
-        same_vector = np.array_equal(zd[:, :grid_nodes], results["node_order"][0][:, :grid_nodes])
-        diagonals, slots = rows["rd"].shape[1:]
-        buffer = np.concatenate([rows[name].reshape(k, -1) for name, k in (
-            ("rd", 3), ("inv", 9), ("left", 5), ("low", 5))] + [np.zeros((3, diagonals * slots))])
-        sweep_flat = one_buffer(slots, diagonals, "sweep")
-        flat_us = best_us(lambda k: sweep_flat(buffer.reshape(-1), k))
-        y_flat = buffer[-3:][:, rows["position"]]
-        same_flat = np.array_equal(y_flat, results["node_order"][0][:, :grid_nodes])
-        identity = np.tile(np.eye(3).reshape(9, 1), diagonals * slots)  # the empty slots'
-        blocks = identity.copy()
-        blocks[:, rows["position"]] = diagonal[:, :grid_nodes]
-        factor_buffer = np.concatenate([blocks, rows["left"].reshape(5, -1),
-                                        rows["low"].reshape(5, -1), identity])
-        factor_flat = one_buffer(slots, diagonals, "factor")
-        flat_factor_us = best_us(lambda k: factor_flat(factor_buffer.reshape(-1), k))
-        same_factor = np.array_equal(factor_buffer[-9:][:, rows["position"]],
-                                     results["node_order"][1][:, :grid_nodes])
+        in_rows = diagonal_parts(g, r, diagonal, *results["node_order"])
         sweep, dilu_factor = sweeps["node_order"], factors["node_order"]
         taken = {
             "t_s": state.time, "nodes": count, "row_length": length,
@@ -503,13 +518,7 @@ class GridParts(At):
             "wavefront": {"gauss_seidel_sweep_us": sweeps["wavefront"],
                           "dilu_factor_us": factors["wavefront"],
                           "same_results_as_node_order": same},
-            "diagonal_rows": {"gauss_seidel_sweep_us": vector_sweep,
-                              "regather_us": regather,
-                              "same_results_as_node_order": bool(same_vector),
-                              "one_buffer_sweep_us": flat_us,
-                              "one_buffer_same_results_as_node_order": bool(same_flat),
-                              "one_buffer_dilu_factor_us": flat_factor_us,
-                              "one_buffer_factor_same_as_node_order": bool(same_factor)},
+            "diagonal_rows": in_rows,
             "cg_per_step_us": iteration * per_step}
         step = step_parts(e, state)  # (last: it advances the run)
         step["cg_us"] = iteration * step["cg_iterations_per_step"] + factor
@@ -680,6 +689,7 @@ def preconditioners(taken: dict) -> dict:
     blocks = np.linalg.inv(taken["matrix"].reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :])
     lower, upper, diagonal = sp.tril(a, format="csr"), sp.triu(a, format="csr"), a.diagonal()
     factor = sp.csr_matrix(incomplete_cholesky(a))
+    direct = direct_neighbours(n, taken)
     factor_t = factor.T.tocsr()
     methods = {
         "block_jacobi": lambda r: np.einsum("nab,nb->na", blocks, r.reshape(n, 3)).reshape(-1),
@@ -689,9 +699,9 @@ def preconditioners(taken: dict) -> dict:
             factor_t, spsolve_triangular(factor, r, lower=True), lower=False),
         "block_dilu_grid_threads": block_dilu(taken["matrix"],
                                               grid_neighbours(n, taken["nodes_per_side"])),
-        "block_dilu_direct_couplings": block_dilu(taken["matrix"], direct_neighbours(n, taken)),
+        "block_dilu_direct_couplings": block_dilu(taken["matrix"], direct),
         "block_dilu_direct_couplings_woodbury_cables": woodbury_dilu(
-            taken["matrix"], direct_neighbours(n, taken), cable_rank_one(taken, n)),
+            taken["matrix"], direct, cable_rank_one(taken, n)),
     }
     try:
         import pyamg

@@ -135,9 +135,6 @@ def test_compiled_loops_have_the_same_cache_key_in_every_process():
     # Reference: numba's cache index (numba.core.caching.Cache._index_key) hashes a closure's
     # captured values as pickled; a captured dispatcher pickles differently in every process,
     # so a loop capturing one would compile anew in every run. Two processes, the same keys.
-    import subprocess
-    import sys
-
     keys = [subprocess.run([sys.executable, "-c", _CLOSURE_KEYS], capture_output=True,
                            text=True, check=True).stdout for _ in range(2)]
     assert keys[0].count("\n") == 6 and keys[0] == keys[1]
