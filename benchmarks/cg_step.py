@@ -35,8 +35,10 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    the anti-diagonals regathered into contiguous rows (:func:`diagonal_rows`, so that a
    diagonal's nodes go through the vector units together; its gather and scatter timed
    apart; checked the same, bit for bit), those rows also in one buffer at compile-time
-   offsets (:func:`one_buffer`, the sweep and the factor; both checked the same); with
-   them, the CG step with block D-ILU estimated from the parts (:func:`dilu_estimate`);
+   offsets (:func:`one_buffer`, the sweep and the factor; both checked the same); the
+   solver's own block D-ILU (the ``block_dilu`` preconditioner, :func:`solver_dilu`: its
+   factor and its preconditioning); with them, the CG step with block D-ILU estimated from
+   the parts (:func:`dilu_estimate`);
 4. the rest of the step at the grid path's state: the contact stages (node-debris and
    node-node, each called from a copy of the state) and then the whole step, the run's
    loop advanced over :data:`STEP_SPAN` (its CG iterations counted), so that the step's
@@ -68,6 +70,7 @@ from bulletnet.kernels.axial import block_product, invert3
 from bulletnet.solver import grid as G
 from bulletnet.solver import integrators, pcg
 from bulletnet.solver.contact_stage import self_stage
+from bulletnet.solver.dilu import dilu_arrays
 
 PASS_ROWS = {"product": 35, "preconditioning_and_sums": 21, "dot_d_ad": 6, "updates": 15}
 """Rows of L doubles each pass of a CG iteration reads plus writes (grid layout): the product
@@ -472,6 +475,19 @@ def diagonal_parts(grid, r, diagonal, z_node_order, dilu_node_order) -> dict:
                 np.array_equal(factor_buffer[-9:][:, position], expected_dilu))}
 
 
+def solver_dilu(e, g, r, z, ad) -> dict:
+    """The solver's own block D-ILU (``simulation.preconditioner = "block_dilu"``,
+    :mod:`bulletnet.solver.dilu`) on the grid's state: its factor (the diagonal blocks, the
+    couplings, D^-1, and W and S for the taut cables) and one preconditioning with its sums,
+    timed as the solver calls them [us]. Leaves block_inv as block D-ILU's factor wrote it
+    (the run's next step factors anew)."""
+    grid = g._replace(dilu=dilu_arrays(e.model, g.cables))
+    return {"factor_us": best_us(lambda k: _time_factor(grid, k)),
+            "preconditioning_and_sums_us": best_us(
+                lambda k: _time_preconditioning(grid, r, z, ad, STILL, k)),
+            "taut_cables": 0 if g.cables is None else int((g.cables.along > 0).sum())}
+
+
 class GridParts(At):
     """At the first frame at or after ``at`` [s]: a CG iteration's parts timed on the grid
     path (see the module doc); then stops the run."""
@@ -509,6 +525,7 @@ class GridParts(At):
                    for a, b in zip(results["node_order"], results["wavefront"], strict=True))
         in_rows = diagonal_parts(g, r, diagonal, *results["node_order"])
         sweep, dilu_factor = sweeps["node_order"], factors["node_order"]
+        in_solver = solver_dilu(e, g, r, z, ad)  # (last of the timings on this state)
         taken = {
             "t_s": state.time, "nodes": count, "row_length": length,
             "cg_iterations_per_step": per_step, "factor_us": factor,
@@ -518,7 +535,7 @@ class GridParts(At):
             "wavefront": {"gauss_seidel_sweep_us": sweeps["wavefront"],
                           "dilu_factor_us": factors["wavefront"],
                           "same_results_as_node_order": same},
-            "diagonal_rows": in_rows,
+            "diagonal_rows": in_rows, "solver_block_dilu": in_solver,
             "cg_per_step_us": iteration * per_step}
         step = step_parts(e, state)  # (last: it advances the run)
         step["cg_us"] = iteration * step["cg_iterations_per_step"] + factor
@@ -541,7 +558,7 @@ class PairSystemAt(At):
                                     e.base_forces(), 0.0, True)
         integrators.implicit_increment(s.position, s.velocity, a, w, e.dt, e.cg_tolerance)
         system = integrators.PairSystem(a.mass, a.fixed, a.pairs, w.along, w.across, w.axis,
-                                        w.block_inv, a.cables)
+                                        w.block_inv, a.cables, None)
         n = s.position.shape[0]
         matrix = np.zeros((3 * n, 3 * n))
         unit, column = np.zeros((n, 3)), np.zeros((n, 3))
@@ -735,7 +752,9 @@ def dilu_estimate(case: dict, cables: int) -> dict:
     every node, counted as half of the iteration's two updates; that step also with each
     sweep on the diagonal rows (:func:`_time_sweep_diagonals`; the factor in wavefront
     order, scalar), and on them in one buffer (:func:`one_buffer`, the factor too), each
-    sweep plus its gather and scatter."""
+    sweep plus its gather and scatter; first, the step with the solver's own block D-ILU
+    (``solver_step_us``: :func:`solver_dilu`'s factor, and per iteration its
+    preconditioning, the product, d . A d and the updates)."""
     parts, bound = case["iteration_parts_us"], case["bounds"]["sequential_sum_us"]
     rest = parts["product"] + parts["dot_d_ad"] + parts["updates"] + 2 * bound
     iteration = 2 * case["gauss_seidel_sweep_us"] + rest
@@ -748,7 +767,11 @@ def dilu_estimate(case: dict, cables: int) -> dict:
     dilu, jacobi = taken["block_dilu_grid_threads"]["warm"], taken["block_jacobi"]["warm"]
     woodbury = taken["block_dilu_direct_couplings_woodbury_cables"]["warm"]
     extra = cables * parts["updates"] / 2.0
-    return {"iteration_us": iteration, "iterations": dilu,
+    solver = case["solver_block_dilu"]
+    return {"solver_step_us": woodbury * (solver["preconditioning_and_sums_us"]
+                                          + parts["product"] + parts["dot_d_ad"]
+                                          + parts["updates"]) + solver["factor_us"],
+            "iteration_us": iteration, "iterations": dilu,
             "step_us": dilu * iteration + case["dilu_factor_us"],
             "wavefront_iteration_us": wave_iteration,
             "wavefront_step_us": dilu * wave_iteration + wave["dilu_factor_us"],

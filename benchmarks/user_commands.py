@@ -9,11 +9,15 @@ deployment) is timed in this process, so every command's wall time is also given
 to the yardstick measured beside it. With ``--repeats N`` the list runs N times over,
 interleaved, and each command reports the medians of its N walls, loops and ratios (each
 ratio to the yardstick timed just before that run) beside all N. ``--only TEXT`` keeps the
-lines that contain TEXT (repeatable). Writes ``OUT/user_commands.json``, or with ``--only``
-``OUT/user_commands_TEXT.json``:
+lines that contain TEXT (repeatable); ``--variant KEY=VALUE`` also runs each line with
+``--set KEY=VALUE``, right after it in every repeat (repeatable). Writes
+``OUT/user_commands.json``, or with ``--only`` and ``--variant``
+``OUT/user_commands_TEXT_KEY_VALUE.json``:
 
     python benchmarks/user_commands.py benchmarks/results --repeats 1
     python benchmarks/user_commands.py benchmarks/results --only "capture --bending" --repeats 5
+    python benchmarks/user_commands.py benchmarks/results --only capture --repeats 3 \
+        --variant 'simulation.preconditioner="block_dilu"'
 """
 
 from __future__ import annotations
@@ -71,10 +75,13 @@ def main() -> int:
     p = parser(__doc__.split("\n\n")[0])
     p.add_argument("--only", action="append", default=[], metavar="TEXT",
                    help="time only the run lines that contain TEXT (repeatable)")
+    p.add_argument("--variant", action="append", default=[], metavar="KEY=VALUE",
+                   help="also time each line with --set KEY=VALUE, interleaved (repeatable)")
     args = p.parse_args()
     out = output_dir(args)
-    lines = [line for line in readme_run_lines()
-             if not args.only or any(t in shlex.join(line) for t in args.only)]
+    lines = [variant for line in readme_run_lines()
+             if not args.only or any(t in shlex.join(line) for t in args.only)
+             for variant in [line] + [[*line, "--set", kv] for kv in args.variant]]
     if not lines:
         raise SystemExit(f"user_commands: no run line of the README contains {args.only}")
     runs: list[list[dict]] = [[] for _ in lines]
@@ -119,7 +126,8 @@ def main() -> int:
               "yardstick": {"sha256": yardstick.file_hash(), "walls_s": yard,
                             "median_s": statistics.median(yard)},
               "commands": rows}
-    slug = "_".join(re.sub(r"[^a-z0-9]+", "_", t.lower()).strip("_") for t in args.only)
+    slug = "_".join(re.sub(r"[^a-z0-9]+", "_", t.lower()).strip("_")
+                    for t in args.only + args.variant)
     path = out / (f"user_commands_{slug}.json" if slug else "user_commands.json")
     path.write_text(json.dumps(result, indent=1) + "\n")
     print(f"-> {path}")

@@ -106,7 +106,8 @@ class Engine(ABC):
         self.cables = winch_cables(scenario, model)
         """The closing cables and their winches, as the kernels read and write them."""
         self.arrays = integrators.model_arrays(model, self.cables, scene_orbit(scenario),
-                                               scene_reel(scenario, model))
+                                               scene_reel(scenario, model),
+                                               scenario.simulation.preconditioner)
         self.breakage = scene_breakage(scenario, model)
         """What fails and when (:mod:`bulletnet.kernels.breakage`); None without breakage."""
         written = set()  # the thread arrays the kernels write: the engine's own copies

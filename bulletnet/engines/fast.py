@@ -38,7 +38,8 @@ class FastEngine(Engine):
         use_grid = (scenario.simulation.kernels == "grid" and self.dt > 0
                     and grid_kernels.applies(model))
         self.grid = (grid_kernels.build(model, self.arrays.cables, self.arrays.orbit,
-                                        self.arrays.rest_rate) if use_grid else None)
+                                        self.arrays.rest_rate, self.arrays.dilu)
+                     if use_grid else None)
         """The net's grid threads and structure-of-arrays state (None: the pair-list path)."""
         if use_grid:  # (built from the model: exponential Euler's dampers set for the step)
             grid_kernels.scale_damping(self.grid, model.pairs, self.damping_factor)

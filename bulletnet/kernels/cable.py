@@ -242,13 +242,14 @@ def _inline_cable_product(x, cables, out, along_scale, sign):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def add_vertex_block(m, cables, c, v):
+def add_vertex_block(m, cables, c, v, rank_one):
     """m (a row-major 9-tuple) + vertex v's share of cable c's diagonal block: along g_v g_v^T
-    plus the geometric blocks of the spans on either side (for the block-Jacobi
-    preconditioner; a node passed twice gets each pass's share)."""
-    g0, g1, g2 = cables.grad[v, 0], cables.grad[v, 1], cables.grad[v, 2]
-    u0, u1, u2 = _unit(g0, g1, g2)
-    m = add_block(m, cables.along[c] * (g0 * g0 + g1 * g1 + g2 * g2), 0.0, u0, u1, u2)
+    (with ``rank_one``) plus the geometric blocks of the spans on either side (for the
+    preconditioners; a node passed twice gets each pass's share)."""
+    if rank_one:
+        g0, g1, g2 = cables.grad[v, 0], cables.grad[v, 1], cables.grad[v, 2]
+        u0, u1, u2 = _unit(g0, g1, g2)
+        m = add_block(m, cables.along[c] * (g0 * g0 + g1 * g1 + g2 * g2), 0.0, u0, u1, u2)
     axis, across = cables.axis, cables.across
     if v > cables.start[c]:
         m = add_block(m, 0.0, across[v - 1], axis[v - 1, 0], axis[v - 1, 1], axis[v - 1, 2])
@@ -256,10 +257,10 @@ def add_vertex_block(m, cables, c, v):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def add_cable_blocks(cables, flat):
+def add_cable_blocks(cables, flat, rank_one):
     """Add each cable vertex's share of its cable's diagonal block
-    (:func:`add_vertex_block`) to its node's row of ``flat``
-    (nodes, 9): the 3 x 3 blocks row-major."""
+    (:func:`add_vertex_block`; its rank-one part only with ``rank_one``) to its node's row of
+    ``flat`` (nodes, 9): the 3 x 3 blocks row-major."""
     if cables is None:  # no cables: this specialization compiles to nothing
         return
     for c in range(cables.start.shape[0] - 1):
@@ -268,7 +269,8 @@ def add_cable_blocks(cables, flat):
         for v in range(cables.start[c], cables.start[c + 1]):
             i = cables.nodes[v]
             m = add_vertex_block((flat[i, 0], flat[i, 1], flat[i, 2], flat[i, 3], flat[i, 4],
-                                  flat[i, 5], flat[i, 6], flat[i, 7], flat[i, 8]), cables, c, v)
+                                  flat[i, 5], flat[i, 6], flat[i, 7], flat[i, 8]), cables, c, v,
+                                 rank_one)
             for a in range(9):
                 flat[i, a] = m[a]
 

@@ -477,6 +477,11 @@ class Simulation:
     error than 1e-8 (docs/speed.md). Relative to each step's right-hand side, so its error is
     added once a step: a finer step wants a tighter tolerance (the capture's first 20 s at
     2.5e-4 s: first contact 83 ms early at 3e-4, 4 ms late at 1e-6; docs/capture.md)."""
+    preconditioner: str = _f("block_jacobi", "-", "choice", ("block_jacobi", "block_dilu"))
+    """Preconditioner of implicit_euler's conjugate gradients: ``block_jacobi`` (each node's
+    3 x 3 diagonal block inverted) or ``block_dilu`` (block D-ILU over the threads and the
+    cables' spans, the cables' rank-one parts added back by Woodbury: fewer, dearer
+    iterations; bulletnet.solver.dilu, docs/speed.md)."""
     kernels: str = _f("grid", "-", "choice", ("grid", "pairs"))
     """Thread kernels of the fast engine: ``grid`` (stencils over the net's rows and columns,
     for an Eq. 1 net; any other model falls back to pairs) or ``pairs`` (one loop over the

@@ -14,7 +14,8 @@ in the general pair-list kernels (:mod:`bulletnet.kernels.axial`), which read th
 through (N, 3) views of the rows (:attr:`GridViews`). The contact stage and the bending
 springs read those views too. The implicit step solves its system with the pair list's
 conjugate gradients (:func:`bulletnet.solver.pcg.solve`), given this module's product and
-block-Jacobi preconditioner on the rows.
+block-Jacobi preconditioner on the rows (or block D-ILU's, :mod:`bulletnet.solver.dilu`, on
+the same rows).
 
 Layout: :class:`Grid` holds rows of length L >= N (N nodes, padded to a multiple of 8), all
 carved, with the threads' parameters, from one 64-byte aligned buffer (the placement of a
@@ -61,7 +62,9 @@ from ..kernels.orbit import OrbitArrays, clear_orbit_nodes, orbit_forces
 from ..kernels.peaks import track_cables, track_threads
 from ..model.net import NetModel
 from ..model.topology import thread_pairs
+from . import dilu as dilu_kernels
 from . import pcg
+from .dilu import DiluArrays
 
 ALIGN = 64
 """Alignment of every row [bytes] (a cache line; a whole AVX-512 register)."""
@@ -148,7 +151,8 @@ class Grid(NamedTuple):
     cg: np.ndarray
     """CG vectors r, z, d, A d [kg m/s, m/s, m/s, kg m/s], shape (4, 3, L)."""
     block_inv: np.ndarray
-    """Inverse block-Jacobi preconditioner, row-major 3 x 3 per node [1/kg], shape (9, L)."""
+    """Inverse block-Jacobi preconditioner, row-major 3 x 3 per node [1/kg], shape (9, L)
+    (with block D-ILU, the diagonal blocks it is factored from [kg])."""
     o_tension: np.ndarray
     """Tension of the other threads [N], shape (Q,)."""
     o_along: np.ndarray
@@ -183,6 +187,9 @@ class Grid(NamedTuple):
     o_rest_rate: np.ndarray | None = None
     """The other threads' rest-length rates [m/s], shape (Q,) (a tether reeled at the chaser,
     :mod:`bulletnet.kernels.reel`); None without a reel (all zero)."""
+    dilu: DiluArrays | None = None
+    """Block D-ILU's couplings and scratch (:mod:`bulletnet.solver.dilu`); None: the
+    block-Jacobi preconditioner."""
 
 
 class GridViews(NamedTuple):
@@ -238,10 +245,12 @@ def _carve(shapes: list[tuple[int, ...]], leads: list[int]) -> list[np.ndarray]:
 
 
 def build(model: NetModel, cables: CableArrays | None = None,
-          orbit: OrbitArrays | None = None, rest_rate: np.ndarray | None = None) -> Grid:
+          orbit: OrbitArrays | None = None, rest_rate: np.ndarray | None = None,
+          dilu: DiluArrays | None = None) -> Grid:
     """The grid of a net that :func:`applies`: its threads' parameters rearranged by stencil
-    and zeroed state and scratch, its closing ``cables``, reference ``orbit`` and the
-    threads' rest-length rates ``rest_rate`` [m/s] (P,) (None: none)."""
+    and zeroed state and scratch, its closing ``cables``, reference ``orbit``, the threads'
+    rest-length rates ``rest_rate`` [m/s] (P,) and block D-ILU's arrays ``dilu``
+    (:func:`bulletnet.solver.dilu.dilu_arrays`) (None: none; block Jacobi)."""
     ns, count, pairs, mass = model.nodes_per_side, model.node_count, model.pairs, model.mass
     per_thread = np.vstack([  # rows: rest, k, c, then the bending parameters (h_bend)
         model.rest_length, model.axial_stiffness, model.axial_damping,
@@ -280,7 +289,7 @@ def build(model: NetModel, cables: CableArrays | None = None,
         o_along=np.zeros(q), o_across=np.zeros(q), o_axis=o_axis, o_bend=o[3:7].copy(),
         o_rest_axis=o[7:].T.copy(), o_shear=np.zeros(q), bh=bh, bv=bv, peak_rows=peak_rows,
         cables=cables, orbit=orbit,
-        o_rest_rate=None if rest_rate is None else rest_rate[inner:].copy())
+        o_rest_rate=None if rest_rate is None else rest_rate[inner:].copy(), dilu=dilu)
 
 
 def views(grid: Grid) -> GridViews:
@@ -563,7 +572,9 @@ def _store(rows, i, m):
 @nb.njit(cache=True, error_model="numpy", _nrt=False)
 def _block_jacobi(grid):
     """Each node's 3 x 3 diagonal block of the implicit system, inverted, into block_inv (the
-    preconditioner of :func:`bulletnet.solver.pcg.solve`)."""
+    preconditioner of :func:`bulletnet.solver.pcg.solve`); with block D-ILU (grid.dilu) the
+    blocks without the cables' rank-one parts, not inverted, and from them D-ILU's factor
+    (:func:`bulletnet.solver.dilu.factor`)."""
     ns, n, count, mass, inv = U(grid.ns), U(grid.n), U(grid.count), grid.mass, grid.block_inv
     # three passes of three entries each: one pass writing all nine rows stayed scalar (too
     # many rows for LLVM's runtime alias checks; the capture's 441 grid nodes, 4.4 -> 3.6 us)
@@ -592,19 +603,43 @@ def _block_jacobi(grid):
                           across[q], axis[q, 0], axis[q, 1], axis[q, 2])
             for a in range(9):
                 inv[a, node] = m[a]
-    add_cable_blocks(grid.cables, inv[:, :count].T)
+    add_cable_blocks(grid.cables, inv[:, :count].T, grid.dilu is None)
+    if _dilu_factor(grid.dilu, grid):
+        return
     for i in range(count):
         _store(inv, i, invert3((inv[0, i], inv[1, i], inv[2, i], inv[3, i], inv[4, i],
                                 inv[5, i], inv[6, i], inv[7, i], inv[8, i])))
 
 
+@nb.njit(cache=True, error_model="numpy")
+def _dilu_factor(dilu, grid):
+    """Block D-ILU's factor from the diagonal blocks in grid's block_inv
+    (:func:`bulletnet.solver.dilu.factor`), the threads' blocks gathered from the rows; False,
+    and nothing compiled, without block D-ILU (``dilu`` None)."""
+    if dilu is None:
+        return False
+    dilu_kernels.gather_grid_threads(dilu, grid.blocks, grid.eh, grid.ev, grid.o_along,
+                                     grid.o_across, grid.o_axis)
+    dilu_kernels.factor(dilu, grid.block_inv, dilu.along, dilu.across, dilu.axis, grid.cables)
+    return True
+
+
 @nb.njit(cache=True, error_model="numpy", inline="always")
 def _precondition(grid, r, z, ad, alpha):
+    """:func:`_preconditioned` with the grid's block D-ILU arrays (None: block Jacobi)."""
+    return _preconditioned(grid.dilu, grid, r, z, ad, alpha)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _preconditioned(dilu, grid, r, z, ad, alpha):
     """r [kg m/s] <- r - ``alpha`` [-] ad [kg m/s], then z [m/s] = the inverse diagonal blocks
     times r, node by node ((3, L) rows; the padding columns, zeros, untouched); returns r . z
     [kg m^2/s^2] and r . r [kg^2 m^2/s^2] summed in node order
-    (:func:`bulletnet.solver.pcg.dot_terms`)."""
+    (:func:`bulletnet.solver.pcg.dot_terms`); with block D-ILU (grid.dilu), z = its
+    preconditioner times r (:func:`bulletnet.solver.dilu.precondition`)."""
     count, inv = U(grid.count), grid.block_inv
+    if dilu is not None:
+        return dilu_kernels.precondition(dilu, r, z, ad, alpha, count, grid.cables)
     rz = rr = 0.0
     for i in range(count):
         r0, r1, r2 = r[0, i] - alpha * ad[0, i], r[1, i] - alpha * ad[1, i], \

@@ -14,8 +14,9 @@ same semi-implicit update), so both engines run the same method.
   the dampers no longer limit the step, the springs do (about sqrt(2) / omega_max;
   :mod:`bulletnet.solver.exponential_damping`).
 - ``implicit_euler``: linearly implicit (one Newton step of) backward Euler on the axial
-  threads, (M + dt C + dt^2 K) dv = dt F - dt^2 K v, solved by block-Jacobi preconditioned
-  conjugate gradients (:func:`bulletnet.solver.pcg.solve`, shared with the grid's stencils),
+  threads, (M + dt C + dt^2 K) dv = dt F - dt^2 K v, solved by preconditioned conjugate
+  gradients (block Jacobi, or block D-ILU: :mod:`bulletnet.solver.dilu`;
+  :func:`bulletnet.solver.pcg.solve`, shared with the grid's stencils),
   then shifted by the uniform velocity that makes the step conserve momentum exactly (the
   threads' blocks vanish on it). Bending forces enter F explicitly; the node rotations take
   dw = h tau / (J + h C_g + h^2 K_g) with C_g, K_g the Gershgorin bounds of their angular
@@ -54,6 +55,7 @@ from ..kernels.orbit import OrbitArrays, orbit_forces
 from ..kernels.peaks import track_cables, track_threads
 from ..kernels.reel import ReelArrays, reel_tether
 from ..model.net import NetModel
+from . import dilu as dilu_kernels
 from . import grid as grid_kernels
 from . import pcg
 from .contact_stage import contact_stage, ensure_pairs
@@ -136,16 +138,21 @@ class ModelArrays(NamedTuple):
     """Thread rest-length rates l_0' [m/s], shape (P,), which the dampers subtract (the
     reeled tether's; :mod:`bulletnet.kernels.axial`); None without a reel (all zero, nothing
     read)."""
+    dilu: dilu_kernels.DiluArrays | None = None
+    """Block D-ILU's couplings and scratch, the implicit step's preconditioner
+    (:mod:`bulletnet.solver.dilu`); None: block Jacobi."""
 
 
 def model_arrays(model: NetModel, cables: CableArrays | None = None,
-                 orbit: OrbitArrays | None = None, reel: ReelArrays | None = None
-                 ) -> ModelArrays:
+                 orbit: OrbitArrays | None = None, reel: ReelArrays | None = None,
+                 preconditioner: str = "block_jacobi") -> ModelArrays:
     """The model's arrays as the compiled kernels read them, with the closing ``cables``
     (:func:`~bulletnet.kernels.cable.cable_arrays`; None, or none in them: no cables), the
     reference ``orbit`` and the ``reel`` at the chaser (None: none; with one, the threads'
-    rest-length rates, zero)."""
+    rest-length rates, zero), and the implicit step's ``preconditioner`` (block_jacobi or
+    block_dilu)."""
     m = model
+    cables = cables if cables is not None and cables.rest.shape[0] else None
     rot_c, rot_k = rotational_bounds(m)
     return ModelArrays(
         mass=m.mass, pairs=m.pairs, rest=m.rest_length, k_a=m.axial_stiffness,
@@ -155,8 +162,9 @@ def model_arrays(model: NetModel, cables: CableArrays | None = None,
         # clamped nodes: no velocity change
         inv_mass=np.repeat(np.where(m.fixed, 0.0, 1.0 / m.mass)[:, None], 3, axis=1),
         radius=m.radius, rot_c=rot_c, rot_k=rot_k,
-        cables=cables if cables is not None and cables.rest.shape[0] else None, orbit=orbit,
-        reel=reel, rest_rate=None if reel is None else np.zeros(m.thread_count))
+        cables=cables, orbit=orbit, reel=reel,
+        rest_rate=None if reel is None else np.zeros(m.thread_count),
+        dilu=dilu_kernels.dilu_arrays(m, cables) if preconditioner == "block_dilu" else None)
 
 
 class Workspace(NamedTuple):
@@ -228,9 +236,12 @@ class PairSystem(NamedTuple):
     axis: np.ndarray
     """Thread unit directions [-], shape (P, 3)."""
     block_inv: np.ndarray
-    """Inverse block-Jacobi preconditioner [1/kg], shape (N, 3, 3)."""
+    """Inverse block-Jacobi preconditioner [1/kg], shape (N, 3, 3) (with block D-ILU, the
+    diagonal blocks it is factored from [kg])."""
     cables: CableArrays | None
     """The closing cables (their blocks and vertices' shares); None without."""
+    dilu: dilu_kernels.DiluArrays | None
+    """Block D-ILU's couplings and scratch; None: block Jacobi."""
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -303,7 +314,9 @@ def _block_jacobi(system):
                           axis[p, 2])
             for a in range(9):
                 flat[node, a] = m[a]
-    add_cable_blocks(system.cables, flat)
+    add_cable_blocks(system.cables, flat, system.dilu is None)
+    if _dilu_factor(system.dilu, system, flat):
+        return
     for i in range(n):
         m = invert3((flat[i, 0], flat[i, 1], flat[i, 2], flat[i, 3], flat[i, 4], flat[i, 5],
                      flat[i, 6], flat[i, 7], flat[i, 8]))
@@ -312,12 +325,33 @@ def _block_jacobi(system):
 
 
 @nb.njit(cache=True, error_model="numpy")
+def _dilu_factor(dilu, system, flat):
+    """Block D-ILU's factor from the diagonal blocks ``flat`` (N, 9)
+    (:func:`bulletnet.solver.dilu.factor`); False, and nothing compiled, without block D-ILU
+    (``dilu`` None)."""
+    if dilu is None:
+        return False
+    dilu_kernels.factor(dilu, flat.T, system.along, system.across, system.axis, system.cables)
+    return True
+
+
+@nb.njit(cache=True, error_model="numpy")
 def _precondition(system, r, z, ad, alpha):
+    """:func:`_preconditioned` with the system's block D-ILU arrays (None: block Jacobi)."""
+    return _preconditioned(system.dilu, system, r, z, ad, alpha)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _preconditioned(dilu, system, r, z, ad, alpha):
     """r [kg m/s] <- r - ``alpha`` [-] ad [kg m/s], then z [m/s] = the inverse diagonal blocks
     of :class:`PairSystem` times r, node by node, zero on clamped nodes; r, z and ad (N, 3).
     Returns r . z [kg m^2/s^2] and r . r [kg^2 m^2/s^2] summed in node order
-    (:func:`bulletnet.solver.pcg.dot_terms`)."""
+    (:func:`bulletnet.solver.pcg.dot_terms`); with block D-ILU (system.dilu), z = its
+    preconditioner times r (:func:`bulletnet.solver.dilu.precondition`)."""
     inv, fixed = system.block_inv, system.fixed
+    if dilu is not None:
+        return dilu_kernels.precondition(dilu, r.T, z.T, ad.T, alpha, r.shape[0],
+                                         system.cables)
     rz = rr = 0.0
     for i in range(r.shape[0]):
         r0, r1, r2 = r[i, 0] - alpha * ad[i, 0], r[i, 1] - alpha * ad[i, 1], \
@@ -372,7 +406,8 @@ def implicit_increment(pos, vel, model, work, dt, tol):
             clamped = True
             r[i, 0], r[i, 1], r[i, 2] = 0.0, 0.0, 0.0
             dv[i, 0], dv[i, 1], dv[i, 2] = 0.0, 0.0, 0.0
-    system = PairSystem(model.mass, fixed, pairs, along, across, axis, work.block_inv, cables)
+    system = PairSystem(model.mass, fixed, pairs, along, across, axis, work.block_inv, cables,
+                        model.dilu)
     pcg.solve(_apply_blocks, _block_jacobi, _precondition, _components, system, dv, r, cg[1],
               cg[2], cg[3], model.mass, n, tol, work.cg_iterations, not clamped)
 

@@ -1,5 +1,6 @@
-"""The implicit Euler step's linear solver: block-Jacobi preconditioned conjugate gradients,
-written once for both layouts of the net's state.
+"""The implicit Euler step's linear solver: preconditioned conjugate gradients, written once
+for both layouts of the net's state (the preconditioner block Jacobi, or block D-ILU with
+``simulation.preconditioner = "block_dilu"``: :mod:`bulletnet.solver.dilu`).
 
 The pair-list kernels (:func:`bulletnet.solver.integrators.implicit_increment`, (N, 3)
 arrays) and the grid's stencils (:func:`bulletnet.solver.grid.implicit_step`, (3, L) rows)
@@ -9,12 +10,12 @@ layout, and hand :func:`solve` the operations that depend on it, as compiled fun
 
 - ``apply(system, x, out)``: out = A x, the system's matrix times x;
 - ``factor(system)``: the block-Jacobi preconditioner, each node's 3 x 3 diagonal block of A
-  inverted, kept in the system;
+  inverted, kept in the system (or block D-ILU's factor);
 - ``precondition(system, r, z, ad, alpha)``: first r <- r - alpha ad (the residual's update,
   element by element), then z = those inverse blocks times r, node by node (zero on a clamped
-  node's rows), returning the sums r . z and r . r of :func:`dot_terms` over the nodes in node
-  order, all in one pass (a sum in order is a chain of additions; the pass's other work runs
-  beside it: :mod:`bulletnet.common.ordered_sums`);
+  node's rows; or block D-ILU's sweeps), returning the sums r . z and r . r of
+  :func:`dot_terms` over the nodes in node order, all in one pass (a sum in order is a chain
+  of additions; the pass's other work runs beside it: :mod:`bulletnet.common.ordered_sums`);
 - ``components(x)``: x as component rows, x[a, i] component a of node i, shape (3, >= N):
   the grid's rows themselves, the transpose of a pair-list array.
 
@@ -58,12 +59,12 @@ def dot_terms(r0, r1, r2, z0, z1, z2):
 def solve(apply, factor, precondition, components, system, dv, r, z, d, ad, mass, count, tol,
           iterations, conserve):
     """Solve A dv = r for the velocity increment dv [m/s] of nodes 0 .. ``count`` - 1 by
-    block-Jacobi preconditioned conjugate gradients from dv's value on entry (the warm start),
-    to the relative residual ``tol`` [-] (|r - A dv| <= tol |r|), in at most 4 ``count``
-    iterations, each counted in ``iterations`` (1,) int64; then, with ``conserve``, shift dv by
-    the uniform velocity that makes the step's momentum change m dv sum to that of r exactly
-    (the threads' blocks vanish on a uniform velocity; a clamp takes up momentum: nothing to
-    conserve). A zero right-hand side gives dv = 0.
+    preconditioned conjugate gradients (``factor``, ``precondition``) from dv's value on entry
+    (the warm start), to the relative residual ``tol`` [-] (|r - A dv| <= tol |r|), in at
+    most 4 ``count`` iterations, each counted in ``iterations`` (1,) int64; then, with
+    ``conserve``, shift dv by the uniform velocity that makes the step's momentum change m dv
+    sum to that of r exactly (the threads' blocks vanish on a uniform velocity; a clamp takes
+    up momentum: nothing to conserve). A zero right-hand side gives dv = 0.
 
     ``apply``, ``factor`` and ``precondition`` compute with ``system``, ``components`` gives
     a vector's component rows (see the module doc). The vectors, C-contiguous in the path's own
