@@ -25,6 +25,23 @@ def thread_pairs(ns: int) -> np.ndarray:
     return np.array(pairs, dtype=np.int64)
 
 
+def grid_threads(ns: int, node_count: int, pairs: np.ndarray) -> int:
+    """How many of a model's first threads ``pairs`` (P, 2) are an Ns x Ns net's grid threads,
+    Eq. 1's in its order, in a model of ``node_count`` nodes: 2 Ns (Ns - 1), or 0 if the
+    model does not begin with them."""
+    inner = 2 * ns * (ns - 1)
+    return inner if (ns >= 2 and node_count >= ns * ns and pairs.shape[0] >= inner
+                     and np.array_equal(pairs[:inner], thread_pairs(ns)[:inner])) else 0
+
+
+def grid_places(pairs: np.ndarray, ns: int) -> tuple[np.ndarray, np.ndarray]:
+    """Where the grid kernels keep each of the grid threads ``pairs`` (G, 2) (their first G,
+    :func:`grid_threads`): 0 for a row thread i -> i + 1, 1 for a column thread i -> i + Ns,
+    and the column Ns + i of its rows [-], each shape (G,), int64."""
+    i, j = pairs[:, 0], pairs[:, 1]
+    return np.where(j == i + 1, 0, 1).astype(np.int64), (ns + i).astype(np.int64)
+
+
 def node_kinds(ns: int) -> np.ndarray:
     """Kind of every node (:class:`NodeKind`) [-], shape (Ns^2 + 4,), int8."""
     r, c = np.divmod(np.arange(ns * ns), ns)

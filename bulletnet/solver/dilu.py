@@ -42,7 +42,7 @@ from ..kernels import U
 from ..kernels.axial import add_block, invert3
 from ..kernels.cable import CableArrays
 from ..model.net import NetModel
-from ..model.topology import thread_pairs
+from ..model.topology import grid_places, grid_threads
 from . import pcg
 
 ONE = U(1)
@@ -101,20 +101,11 @@ class DiluArrays(NamedTuple):
     """Scratch: L^-1 G^T z0, then S^-1 G^T z0 [kg m/s], shape (C,)."""
 
 
-def grid_threads(model: NetModel) -> int:
-    """How many of ``model``'s first threads are a net's Ns x Ns grid threads (Eq. 1's, in
-    its order): 2 Ns (Ns - 1), or 0 for a model that does not begin with them."""
-    ns = model.nodes_per_side
-    inner = 2 * ns * (ns - 1)
-    return inner if (ns >= 2 and model.node_count >= ns * ns and model.thread_count >= inner
-                     and np.array_equal(model.pairs[:inner], thread_pairs(ns)[:inner])) else 0
-
-
 def elimination_order(model: NetModel) -> np.ndarray:
     """The nodes in the preconditioner's elimination order (see the module doc), clamped
     nodes left out [-], shape (R,), int64."""
     ns, nodes = model.nodes_per_side, np.arange(model.node_count)
-    if grid_threads(model):
+    if grid_threads(ns, model.node_count, model.pairs):
         grid = np.arange(ns * ns)
         row, col = grid // ns, grid % ns
         nodes = np.concatenate([grid[np.lexsort((row, row + col))], nodes[ns * ns:]])
@@ -145,8 +136,8 @@ def dilu_arrays(model: NetModel, cables: CableArrays | None) -> DiluArrays:
     earlier = np.array([k for _, k in couplings], dtype=np.int64)
     up = np.lexsort((later, earlier))  # the upper lists: by earlier rank, then later
     r_count = order.size
-    inner = grid_threads(model)
-    first, second = model.pairs[:inner, 0], model.pairs[:inner, 1]
+    inner = grid_threads(model.nodes_per_side, model.node_count, model.pairs)
+    direction, column = grid_places(model.pairs[:inner], model.nodes_per_side)
     c_count = 0 if cables is None else cables.rest.size
     p = model.thread_count
     return DiluArrays(
@@ -159,8 +150,7 @@ def dilu_arrays(model: NetModel, cables: CableArrays | None) -> DiluArrays:
         span_edge=np.array([edge(i, j) for i, j in spans], dtype=np.int64),
         vertex_rank=(np.zeros(0, dtype=np.int64) if cables is None
                      else rank[cables.nodes].astype(np.int64)),
-        grid_row=np.where(second == first + 1, 0, 2).astype(np.int64),
-        grid_column=(model.nodes_per_side + first).astype(np.int64),
+        grid_row=2 * direction, grid_column=column,
         off=np.zeros((len(couplings), 9)), inv=np.zeros((r_count, 9)),
         y=np.zeros((r_count, 3)), along=np.zeros(p), across=np.zeros(p), axis=np.zeros((p, 3)),
         w=np.zeros((c_count, r_count, 3)), s=np.zeros((c_count, c_count)),

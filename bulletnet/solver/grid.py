@@ -61,7 +61,7 @@ from ..kernels.cable import (
 from ..kernels.orbit import OrbitArrays, clear_orbit_nodes, orbit_forces
 from ..kernels.peaks import track_cables, track_threads
 from ..model.net import NetModel
-from ..model.topology import thread_pairs
+from ..model.topology import grid_places, grid_threads
 from . import dilu as dilu_kernels
 from . import pcg
 from .dilu import DiluArrays
@@ -217,11 +217,8 @@ class GridViews(NamedTuple):
 def applies(model: NetModel) -> bool:
     """Whether ``model`` is a net the grid kernels cover: Eq. 1's threads first, tension-only,
     nothing clamped (the cantilever beam and any other model take the pair-list path)."""
-    ns = model.nodes_per_side
-    inner = 2 * ns * (ns - 1)
-    return (ns >= 2 and not model.bilateral and not model.fixed.any()
-            and model.node_count >= ns * ns and model.thread_count >= inner
-            and np.array_equal(model.pairs[:inner], thread_pairs(ns)[:inner]))
+    return (not model.bilateral and not model.fixed.any()
+            and grid_threads(model.nodes_per_side, model.node_count, model.pairs) > 0)
 
 
 def _rows(total: int) -> int:
@@ -870,6 +867,4 @@ def peak_columns(grid: Grid, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     """Where the grid keeps each grid thread's running maximum in the peaks' rows: (row,
     column) of the first 2 Ns (Ns - 1) threads of ``pairs`` (P, 2), each shape (2 Ns (Ns -
     1),) (:func:`track_peaks`)."""
-    inner = pairs.shape[0] - grid.o_pairs.shape[0]
-    i, j = pairs[:inner, 0], pairs[:inner, 1]
-    return np.where(j == i + 1, 0, 1), grid.ns + i
+    return grid_places(pairs[:pairs.shape[0] - grid.o_pairs.shape[0]], grid.ns)
