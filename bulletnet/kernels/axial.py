@@ -167,7 +167,7 @@ def add_block(m, along, across, ex, ey, ez):
             block_entry(m[8], g, across, ez, ez, True))
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def invert3(m):
     """The inverse of a 3 x 3 matrix given and returned as a row-major 9-tuple (cofactors times
     the determinant's reciprocal: one division, not nine)."""
