@@ -143,7 +143,7 @@ def block_product(d0, d1, d2, along, across, e0, e1, e2):
     return across * d0 + s * e0, across * d1 + s * e1, across * d2 + s * e2
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def block_entry(m, g, across, ea, eb, diagonal):
     """m + entry (a, b) of a thread's implicit block (along - across) e e^T + across I [kg],
     from g = along - across [kg], across [kg] and e's components a and b; ``diagonal``:
@@ -151,7 +151,7 @@ def block_entry(m, g, across, ea, eb, diagonal):
     return m + g * ea * eb + across if diagonal else m + g * ea * eb
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def add_block(m, along, across, ex, ey, ez):
     """m + a thread's implicit block, (along - across) e e^T + across I [kg], with m a 3 x 3
     matrix as a row-major 9-tuple (:func:`block_entry` by entry)."""

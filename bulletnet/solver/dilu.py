@@ -117,6 +117,10 @@ class DiluArrays(NamedTuple):
     first F ranks [-], shape (E,), int64."""
     coupling_slot: np.ndarray
     """... and that slot [-], shape (E,), int64."""
+    fold_columns: np.ndarray
+    """For the grid path, at each folded slot (in slot order): the column of the grid's rows
+    of its left neighbour's row thread, then of its lower neighbour's column thread, -1 for
+    none [-], shape (2, F), int64."""
     past_grid: np.ndarray
     """Each of the first F ranks' entry in the upper lists of its coupling to a rank past
     them, -1 for none [-], shape (F,), int64."""
@@ -130,7 +134,8 @@ class DiluArrays(NamedTuple):
     """The vector being swept at the other ranks, in rank order [m/s once swept], shape
     (R - F, 3)."""
     along: np.ndarray
-    """The threads' implicit blocks along [kg], (P,), gathered from the grid's rows."""
+    """The threads' implicit blocks along [kg], (P,) (on the grid path, the other threads'
+    alone, gathered: :func:`gather_other_threads`)."""
     across: np.ndarray
     """... across [kg], (P,)."""
     axis: np.ndarray
@@ -209,13 +214,14 @@ def dilu_arrays(model: NetModel, cables: CableArrays | None) -> DiluArrays:
 def _fold(model: NetModel, order: np.ndarray, later: np.ndarray, earlier: np.ndarray,
           up: np.ndarray) -> dict:
     """:class:`DiluArrays`' fields of the folded layout (slots, rank_slot, coupling_row,
-    coupling_slot, past_grid): for a net whose first ranks are its Ns x Ns grid nodes, none
-    clamped, coupled among themselves only to their row and column neighbours and each to at
-    most one node past the grid; otherwise no fold (every rank swept by rank)."""
+    coupling_slot, fold_columns, past_grid): for a net whose first ranks are its Ns x Ns grid
+    nodes, none clamped, coupled among themselves only to their row and column neighbours and
+    each to at most one node past the grid; otherwise no fold (every rank swept by rank)."""
     ns, r_count = model.nodes_per_side, order.size
     none = {"slots": (), "rank_slot": np.arange(r_count, dtype=np.int64),
             "coupling_row": np.full(later.size, -1, dtype=np.int64),
             "coupling_slot": np.zeros(later.size, dtype=np.int64),
+            "fold_columns": np.zeros((2, 0), dtype=np.int64),
             "past_grid": np.zeros(0, dtype=np.int64)}
     n = ns * ns
     if not grid_threads(ns, model.node_count, model.pairs) or model.fixed[:n].any():
@@ -241,8 +247,13 @@ def _fold(model: NetModel, order: np.ndarray, later: np.ndarray, earlier: np.nda
             if past_grid[earlier[q]] >= 0:
                 return none
             past_grid[earlier[q]] = position
+    at = np.empty(n, dtype=np.int64)  # the node at each folded slot
+    at[rank_slot[:n] - ns - 2] = node
+    fold_columns = np.stack([np.where(at % ns > 0, ns + at - 1, -1),  # grid_places' columns
+                             np.where(at >= ns, at, -1)]).astype(np.int64)
     return {"slots": (0,) * ns, "rank_slot": rank_slot, "coupling_row": coupling_row,
-            "coupling_slot": coupling_slot.astype(np.int64), "past_grid": past_grid}
+            "coupling_slot": coupling_slot.astype(np.int64), "fold_columns": fold_columns,
+            "past_grid": past_grid}
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -279,25 +290,65 @@ def _less_sandwich(m, b, d):
 
 
 @nb.njit(cache=True, error_model="numpy")
+def gather_other_threads(dilu, o_along, o_across, o_axis):
+    """The grid path's other threads' implicit blocks (Q,), past its grid threads, into dilu's
+    along, across and axis, in the pair list's thread order."""
+    along, across, axis = dilu.along, dilu.across, dilu.axis
+    inner = dilu.grid_row.shape[0]
+    for q in range(o_along.shape[0]):
+        along[inner + q], across[inner + q] = o_along[q], o_across[q]
+        axis[inner + q, 0], axis[inner + q, 1] = o_axis[q, 0], o_axis[q, 1]
+        axis[inner + q, 2] = o_axis[q, 2]
+
+
+@nb.njit(cache=True, error_model="numpy")
 def gather_grid_threads(dilu, blocks, eh, ev, o_along, o_across, o_axis):
     """The grid's threads' implicit blocks into dilu's along, across and axis in the pair
-    list's thread order: the grid threads' from their rows (``blocks`` (4, W), axes ``eh``,
-    ``ev`` (3, W); a slack thread's across read as zero, as its diagonal entries are), then the
-    other threads' (Q,)."""
+    list's thread order, where its nodes are not folded (:func:`_grid_couplings` reads them
+    from the rows where they are): the grid threads' from their rows (``blocks`` (4, W), axes
+    ``eh``, ``ev`` (3, W); a slack thread's across read as zero, as its diagonal entries are),
+    then the other threads' (Q,)."""
     rows, columns = dilu.grid_row, dilu.grid_column
     along, across, axis = dilu.along, dilu.across, dilu.axis
-    inner = rows.shape[0]
-    for p in range(inner):
+    for p in range(rows.shape[0]):
         row, col = rows[p], columns[p]
         e = eh if row == 0 else ev
         on = blocks[row, col] != 0.0
         along[p] = blocks[row, col]
         across[p] = blocks[row + 1, col] if on else 0.0
         axis[p, 0], axis[p, 1], axis[p, 2] = e[0, col], e[1, col], e[2, col]
-    for q in range(o_along.shape[0]):
-        along[inner + q], across[inner + q] = o_along[q], o_across[q]
-        axis[inner + q, 0], axis[inner + q, 1] = o_axis[q, 0], o_axis[q, 1]
-        axis[inner + q, 2] = o_axis[q, 2]
+    gather_other_threads(dilu, o_along, o_across, o_axis)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _slot_block(blocks, axis, row, col):
+    """The coupling block of the grid thread at column ``col`` of ``blocks``' rows ``row``,
+    ``row`` + 1 (along, across; axes ``axis``), zero for col < 0 (no such thread) or a slack
+    thread (along 0: its across read as zero), as :func:`_couplings` adds it onto zeros."""
+    zero = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    if col < 0 or blocks[row, col] == 0.0:
+        return zero
+    return add_block(zero, blocks[row, col], blocks[row + 1, col], axis[0, col], axis[1, col],
+                     axis[2, col])
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _grid_couplings(dilu, blocks, eh, ev):
+    """The folded grid's couplings, slot after slot, from the grid's rows (``blocks`` (4, W):
+    along and across of the row threads, then of the column threads; axes ``eh``, ``ev`` (3,
+    W)): at each node's slot its left neighbour's row thread and its lower neighbour's column
+    thread (:attr:`DiluArrays.fold_columns`), each as :func:`_couplings` adds a thread's."""
+    b, columns, ns = dilu.fold, dilu.fold_columns, U(len(dilu.slots))
+    length, first = fold_length(ns), ns + U(2)
+    low, left = _rows(LOW, length), _rows(LEFT, length)
+    for k in range(ns * ns):
+        f = first + k
+        m = _slot_block(blocks, eh, 0, columns[0, k])
+        for a in range(9):
+            b[left[a] + f] = m[a]
+        m = _slot_block(blocks, ev, 2, columns[1, k])
+        for a in range(9):
+            b[low[a] + f] = m[a]
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
@@ -316,17 +367,23 @@ def _add_coupling(dilu, e, along, across, e0, e1, e2):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _couplings(dilu, along, across, axis, cables):
+def _couplings(dilu, along, across, axis, cables, grid_rows):
     """Each coupling's block B [kg] into dilu's off or, between two folded grid nodes, the
     folded layout's rows (:func:`_add_coupling`): its threads' blocks (thread order; a slack
-    one skipped), then its cable spans' (vertex order; span_edge has an entry, -1, for each
-    cable's last vertex too)."""
+    one skipped; the grid threads' from the grid's rows ``grid_rows`` = (blocks, eh, ev) on
+    the grid path where its nodes are folded, :func:`_grid_couplings`, else None), then its
+    cable spans' (vertex order;
+    span_edge has an entry, -1, for each cable's last vertex too)."""
     dilu.off[:] = 0.0
-    b, length = dilu.fold, fold_length(U(len(dilu.slots)))
-    for k in range(U(LOW) * length, U(LEFT + 9) * length):
-        b[k] = 0.0
-    thread_edge = dilu.thread_edge
-    for p in range(thread_edge.shape[0]):
+    thread_edge, first = dilu.thread_edge, 0
+    if grid_rows is not None:
+        _grid_couplings(dilu, grid_rows[0], grid_rows[1], grid_rows[2])
+        first = dilu.grid_row.shape[0]
+    else:
+        b, length = dilu.fold, fold_length(U(len(dilu.slots)))
+        for k in range(U(LOW) * length, U(LEFT + 9) * length):
+            b[k] = 0.0
+    for p in range(first, thread_edge.shape[0]):
         e = thread_edge[p]
         if e < 0 or (along[p] == 0.0 and across[p] == 0.0):
             continue
@@ -527,12 +584,13 @@ def _factor_slots(b, first, last, shift, s, length):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def factor(dilu, diagonal, along, across, axis, cables):
+def factor(dilu, diagonal, along, across, axis, cables, grid_rows):
     """Block D-ILU's factor: the couplings' blocks from the threads' ``along``, ``across`` [kg]
-    and ``axis`` [-] (P,) and the cables' spans, then D_i^-1 node after node in the order
-    from A0's diagonal blocks ``diagonal`` [kg] (9, >= N) (row-major entries by component
-    row); then, with taut cables, W and S's Cholesky factor (see the module doc)."""
-    _couplings(dilu, along, across, axis, cables)
+    and ``axis`` [-] (P,) (the grid threads' from ``grid_rows`` on the grid path:
+    :func:`_couplings`) and the cables' spans, then D_i^-1 node after node in the order from
+    A0's diagonal blocks ``diagonal`` [kg] (9, >= N) (row-major entries by component row);
+    then, with taut cables, W and S's Cholesky factor (see the module doc)."""
+    _couplings(dilu, along, across, axis, cables, grid_rows)
     order, off, inv, rank_slot = dilu.rank_node, dilu.off, dilu.inv, dilu.rank_slot
     ns = U(len(dilu.slots))
     length, b, n = fold_length(ns), dilu.fold, ns * ns

@@ -611,13 +611,20 @@ def _block_jacobi(grid):
 @nb.njit(cache=True, error_model="numpy")
 def _dilu_factor(dilu, grid):
     """Block D-ILU's factor from the diagonal blocks in grid's block_inv
-    (:func:`bulletnet.solver.dilu.factor`), the threads' blocks gathered from the rows; False,
-    and nothing compiled, without block D-ILU (``dilu`` None)."""
+    (:func:`bulletnet.solver.dilu.factor`), the grid threads' blocks read from the rows where
+    the grid's nodes are folded (else gathered), the other threads' gathered; False, and
+    nothing compiled, without block D-ILU (``dilu`` None)."""
     if dilu is None:
         return False
-    dilu_kernels.gather_grid_threads(dilu, grid.blocks, grid.eh, grid.ev, grid.o_along,
-                                     grid.o_across, grid.o_axis)
-    dilu_kernels.factor(dilu, grid.block_inv, dilu.along, dilu.across, dilu.axis, grid.cables)
+    if len(dilu.slots) == 0:
+        dilu_kernels.gather_grid_threads(dilu, grid.blocks, grid.eh, grid.ev, grid.o_along,
+                                         grid.o_across, grid.o_axis)
+        dilu_kernels.factor(dilu, grid.block_inv, dilu.along, dilu.across, dilu.axis,
+                            grid.cables, None)
+    else:
+        dilu_kernels.gather_other_threads(dilu, grid.o_along, grid.o_across, grid.o_axis)
+        dilu_kernels.factor(dilu, grid.block_inv, dilu.along, dilu.across, dilu.axis,
+                            grid.cables, (grid.blocks, grid.eh, grid.ev))
     return True
 
 

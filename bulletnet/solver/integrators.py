@@ -331,7 +331,8 @@ def _dilu_factor(dilu, system, flat):
     (``dilu`` None)."""
     if dilu is None:
         return False
-    dilu_kernels.factor(dilu, flat.T, system.along, system.across, system.axis, system.cables)
+    dilu_kernels.factor(dilu, flat.T, system.along, system.across, system.axis, system.cables,
+                        None)
     return True
 
 
