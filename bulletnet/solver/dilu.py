@@ -372,8 +372,8 @@ def _couplings(dilu, along, across, axis, cables, grid_rows):
     folded layout's rows (:func:`_add_coupling`): its threads' blocks (thread order; a slack
     one skipped; the grid threads' from the grid's rows ``grid_rows`` = (blocks, eh, ev) on
     the grid path where its nodes are folded, :func:`_grid_couplings`, else None), then its
-    cable spans' (vertex order;
-    span_edge has an entry, -1, for each cable's last vertex too)."""
+    cable spans' (vertex order; span_edge has an entry, -1, for each cable's last vertex
+    too)."""
     dilu.off[:] = 0.0
     thread_edge, first = dilu.thread_edge, 0
     if grid_rows is not None:
