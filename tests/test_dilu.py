@@ -163,13 +163,20 @@ def test_dilu_grid_equals_pairs_through_contact(bending):
     assert_identical(pairs, on_grid)
 
 
-def test_dilu_grid_agrees_with_pairs_with_closing_and_tether():
+@pytest.mark.parametrize("folded", [True, False])
+def test_dilu_grid_agrees_with_pairs_with_closing_and_tether(folded, monkeypatch):
     # tests/test_grid.py's comparison with closing cables and a tether, under block D-ILU: a
     # node with grid threads and other elements sums them in another order on each path, so
     # the runs agree to round-off (measured 4e-15 m), not bit for bit. Each solve stops at a
     # relative residual of 1e-4, where its iterate depends on the preconditioner: one that
     # differed between the paths (a coupling or a cable's rank-one part left out on one)
-    # would part them by about that, and change the iteration count
+    # would part them by about that, and change the iteration count. Folded (dilu's module
+    # doc), the grid path reads its threads' blocks from its rows and the pair list adds them
+    # thread by thread; not folded (as for a net whose grid nodes have other couplings), both
+    # sweep every node by rank
+    if not folded:
+        monkeypatch.setattr(dilu, "_fold", lambda model, order, later, earlier, up:
+                            dilu.no_fold(order.size, later.size))
     runs = []
     for kernels in ("pairs", "grid"):
         engine, state = stepped(small_scene(**CLOSING, **{
@@ -178,6 +185,8 @@ def test_dilu_grid_agrees_with_pairs_with_closing_and_tether():
             "tether.length": 1.0, "tether.chaser_distance": 1.0, "tether.chaser_mass": 1.0}),
             0.4)
         assert engine.kernels == kernels and engine.cables.work.min() > 0.0
+        if kernels == "grid":
+            assert len(engine.grid.dilu.slots) == (7 if folded else 0)
         runs.append((state, int(engine.work.cg_iterations[0])))
         engine.close()
     (pairs, pairs_iterations), (on_grid, grid_iterations) = runs

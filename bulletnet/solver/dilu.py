@@ -68,6 +68,14 @@ def fold_length(ns):
     return ns * ns + 2 * ns + 3
 
 
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def _fold_shape(dilu):
+    """Ns of the folded grid (0 without a fold), the length of the folded layout's rows and F,
+    the folded ranks' count, all compile-time constants (the length of dilu.slots)."""
+    ns = U(len(dilu.slots))
+    return ns, fold_length(ns), ns * ns
+
+
 class DiluArrays(NamedTuple):
     """The couplings of a net's implicit system in an elimination order (:func:`dilu_arrays`)
     and the preconditioner's scratch, for N nodes, R of them not clamped (ranked: their place
@@ -101,9 +109,11 @@ class DiluArrays(NamedTuple):
     grid_column: np.ndarray
     """... and its column, Ns + its first node [-], shape (P_grid,), int64."""
     off: np.ndarray
-    """Each coupling's block B, row-major [kg], shape (E, 9)."""
+    """Each coupling's block B, row-major [kg], shape (E, 9) (zero for a coupling between two
+    folded ranks: its block is kept in ``fold``)."""
     inv: np.ndarray
-    """D^-1 at each rank, row-major [1/kg], shape (R, 9)."""
+    """D^-1 at each rank, row-major [1/kg], shape (R, 9) (unused at the first F ranks: theirs
+    is kept in ``fold``)."""
     slots: tuple
     """Ns zeros where the grid's nodes are swept in the folded layout (module doc), else ()
     (F = Ns^2 of the R ranks there, the first F; none without it): its length is a
@@ -211,6 +221,16 @@ def dilu_arrays(model: NetModel, cables: CableArrays | None) -> DiluArrays:
         t=np.zeros(c_count))
 
 
+def no_fold(r_count: int, e_count: int) -> dict:
+    """:func:`_fold`'s fields without a fold, for R ranks and E couplings: every rank swept by
+    rank, in ``tail``."""
+    return {"slots": (), "rank_slot": np.arange(r_count, dtype=np.int64),
+            "coupling_row": np.full(e_count, -1, dtype=np.int64),
+            "coupling_slot": np.zeros(e_count, dtype=np.int64),
+            "fold_columns": np.zeros((2, 0), dtype=np.int64),
+            "past_grid": np.zeros(0, dtype=np.int64)}
+
+
 def _fold(model: NetModel, order: np.ndarray, later: np.ndarray, earlier: np.ndarray,
           up: np.ndarray) -> dict:
     """:class:`DiluArrays`' fields of the folded layout (slots, rank_slot, coupling_row,
@@ -218,11 +238,7 @@ def _fold(model: NetModel, order: np.ndarray, later: np.ndarray, earlier: np.nda
     nodes, none clamped, coupled among themselves only to their row and column neighbours and
     each to at most one node past the grid; otherwise no fold (every rank swept by rank)."""
     ns, r_count = model.nodes_per_side, order.size
-    none = {"slots": (), "rank_slot": np.arange(r_count, dtype=np.int64),
-            "coupling_row": np.full(later.size, -1, dtype=np.int64),
-            "coupling_slot": np.zeros(later.size, dtype=np.int64),
-            "fold_columns": np.zeros((2, 0), dtype=np.int64),
-            "past_grid": np.zeros(0, dtype=np.int64)}
+    none = no_fold(r_count, later.size)
     n = ns * ns
     if not grid_threads(ns, model.node_count, model.pairs) or model.fixed[:n].any():
         return none
@@ -240,7 +256,7 @@ def _fold(model: NetModel, order: np.ndarray, later: np.ndarray, earlier: np.nda
             coupling_row[q] = LEFT
         else:
             return none
-    coupling_slot = np.where(later < n, rank_slot[np.minimum(later, r_count - 1)], 0)
+    coupling_slot = np.where(later < n, rank_slot[later], 0)
     past_grid = np.full(n, -1, dtype=np.int64)
     for position, q in enumerate(up):
         if earlier[q] < n <= later[q]:
@@ -338,8 +354,9 @@ def _grid_couplings(dilu, blocks, eh, ev):
     along and across of the row threads, then of the column threads; axes ``eh``, ``ev`` (3,
     W)): at each node's slot its left neighbour's row thread and its lower neighbour's column
     thread (:attr:`DiluArrays.fold_columns`), each as :func:`_couplings` adds a thread's."""
-    b, columns, ns = dilu.fold, dilu.fold_columns, U(len(dilu.slots))
-    length, first = fold_length(ns), ns + U(2)
+    b, columns = dilu.fold, dilu.fold_columns
+    ns, length, _ = _fold_shape(dilu)
+    first = ns + U(2)
     low, left = _rows(LOW, length), _rows(LEFT, length)
     for k in range(ns * ns):
         f = first + k
@@ -360,7 +377,7 @@ def _add_coupling(dilu, e, along, across, e0, e1, e2):
         _put(dilu.off, e, add_block(_row(dilu.off, e), along, across, e0, e1, e2))
         return
     b, f = dilu.fold, U(dilu.coupling_slot[e])
-    rows = _rows(first, fold_length(U(len(dilu.slots))))
+    rows = _rows(first, _fold_shape(dilu)[1])
     m = add_block(_at(b, rows, f), along, across, e0, e1, e2)
     for a in range(9):
         b[rows[a] + f] = m[a]
@@ -380,7 +397,7 @@ def _couplings(dilu, along, across, axis, cables, grid_rows):
         _grid_couplings(dilu, grid_rows[0], grid_rows[1], grid_rows[2])
         first = dilu.grid_row.shape[0]
     else:
-        b, length = dilu.fold, fold_length(U(len(dilu.slots)))
+        b, length = dilu.fold, _fold_shape(dilu)[1]
         for k in range(U(LOW) * length, U(LEFT + 9) * length):
             b[k] = 0.0
     for p in range(first, thread_edge.shape[0]):
@@ -459,14 +476,14 @@ def _backward_slots(b, first, last, shift, s, length):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
-def _value(dilu, k):
-    """The swept vector at rank k, in the folded layout or the tail."""
+def _at_rank(dilu, y_fold, y_tail, k):
+    """A vector's value at rank k (unsigned), the vector in the folded layout's rows
+    ``y_fold`` (as fold's first three) and the tail ``y_tail`` (as tail)."""
+    _, length, n = _fold_shape(dilu)
     f = U(dilu.rank_slot[k])
-    if k >= U(dilu.past_grid.shape[0]):
-        return dilu.tail[f, 0], dilu.tail[f, 1], dilu.tail[f, 2]
-    length = fold_length(U(len(dilu.slots)))
-    b = dilu.fold
-    return b[f], b[length + f], b[U(2) * length + f]
+    if k >= n:
+        return y_tail[f, 0], y_tail[f, 1], y_tail[f, 2]
+    return y_fold[f], y_fold[length + f], y_fold[U(2) * length + f]
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -476,8 +493,8 @@ def _sweeps(dilu):
     then by rank over the tail; the backward sweep by rank over the tail, then each grid
     node's term from past the grid, then the folded grid back (indices unsigned: no
     wraparound checks, :data:`bulletnet.kernels.U`)."""
-    s = U(len(dilu.slots))
-    length, b, tail, n = fold_length(s), dilu.fold, dilu.tail, s * s
+    s, length, n = _fold_shape(dilu)
+    b, tail = dilu.fold, dilu.tail
     p = s + U(2)  # the first node's slot
     for d in range(s):  # diagonals 0 .. Ns - 1: slots 0 .. d of slot row d
         _forward_slots(b, p + d * s, p + d * s + d + ONE, U(0), s, length)
@@ -492,7 +509,7 @@ def _sweeps(dilu):
         t = k - n
         a0, a1, a2 = tail[t, 0], tail[t, 1], tail[t, 2]
         for q in range(U(start[k]), U(start[k + ONE])):
-            b0, b1, b2 = _value(dilu, U(earlier[q]))
+            b0, b1, b2 = _at_rank(dilu, b, tail, U(earlier[q]))
             b0, b1, b2 = _times(_row(off, q), b0, b1, b2)
             a0, a1, a2 = a0 + b0, a1 + b1, a2 + b2
         tail[t, 0], tail[t, 1], tail[t, 2] = _times(_row(inv, k), a0, a1, a2)
@@ -538,7 +555,7 @@ def _sweeps(dilu):
 def _load(dilu, x):
     """dilu's fold (its first three rows) and tail <- x (3, >= N) at each rank's node."""
     order, rank_slot, b, tail = dilu.rank_node, dilu.rank_slot, dilu.fold, dilu.tail
-    length, n = fold_length(U(len(dilu.slots))), U(dilu.past_grid.shape[0])
+    _, length, n = _fold_shape(dilu)
     for k in range(n):
         i, f = U(order[k]), U(rank_slot[k])
         b[f], b[length + f], b[U(2) * length + f] = x[0, i], x[1, i], x[2, i]
@@ -552,19 +569,13 @@ def _gradient_dot(dilu, cables, c, y_fold, y_tail):
     """g_c . y over cable c's vertices, y in the folded layout's rows ``y_fold`` and the tail
     ``y_tail`` (a node passed twice counted twice, as g_c sums its shares; a clamped node not
     at all)."""
-    grad, vertex_rank, rank_slot = cables.grad, dilu.vertex_rank, dilu.rank_slot
-    length, n = fold_length(U(len(dilu.slots))), dilu.past_grid.shape[0]
+    grad, vertex_rank = cables.grad, dilu.vertex_rank
     s = 0.0
     for v in range(cables.start[c], cables.start[c + 1]):
         k = vertex_rank[v]
-        if k < 0:
-            continue
-        f = U(rank_slot[k])
-        if k < n:
-            s += (grad[v, 0] * y_fold[f] + grad[v, 1] * y_fold[length + f]
-                  + grad[v, 2] * y_fold[U(2) * length + f])
-        else:
-            s += grad[v, 0] * y_tail[f, 0] + grad[v, 1] * y_tail[f, 1] + grad[v, 2] * y_tail[f, 2]
+        if k >= 0:
+            y0, y1, y2 = _at_rank(dilu, y_fold, y_tail, U(k))
+            s += grad[v, 0] * y0 + grad[v, 1] * y1 + grad[v, 2] * y2
     return s
 
 
@@ -592,8 +603,8 @@ def factor(dilu, diagonal, along, across, axis, cables, grid_rows):
     then, with taut cables, W and S's Cholesky factor (see the module doc)."""
     _couplings(dilu, along, across, axis, cables, grid_rows)
     order, off, inv, rank_slot = dilu.rank_node, dilu.off, dilu.inv, dilu.rank_slot
-    ns = U(len(dilu.slots))
-    length, b, n = fold_length(ns), dilu.fold, ns * ns
+    ns, length, n = _fold_shape(dilu)
+    b = dilu.fold
     for k in range(n):  # the folded grid's: A0's diagonal blocks into the D^-1 rows, then D^-1
         i, f = U(order[k]), U(rank_slot[k])
         for a in range(U(9)):
@@ -672,7 +683,7 @@ def precondition(dilu, r, z, ad, alpha, count, cables):
     _load(dilu, r)
     _sweeps(dilu)
     b, tail = dilu.fold, dilu.tail
-    length = fold_length(U(len(dilu.slots)))
+    _, length, n = _fold_shape(dilu)
     if cables is not None:
         w_fold, w_tail, s, t = dilu.w_fold, dilu.w_tail, dilu.s, dilu.t
         n_c = t.shape[0]
@@ -696,7 +707,7 @@ def precondition(dilu, r, z, ad, alpha, count, cables):
             for k in range(U(flat.shape[0])):
                 flat[k] -= u * wt[k]
     order, rank_slot = dilu.rank_node, dilu.rank_slot
-    ranks, n = U(order.shape[0]), U(dilu.past_grid.shape[0])
+    ranks = U(order.shape[0])
     if ranks < count:
         for a in range(U(3)):
             for i in range(count):
