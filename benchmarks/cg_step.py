@@ -15,8 +15,10 @@ snapshot; there, on the grid path and inside compiled loops (no Python call betw
    gives the iteration's traffic floor; and the latency of a sequential sum over the nodes,
    the floor of one dot product in node order (beside it the same sum left free to be
    reordered, as a vectorized reduction would be);
-3. on the pair list at the same state (the two paths run bit for bit alike), the system's
-   matrix assembled column by column from the solver's own product, and plain PCG
+3. on the pair list at the same time (for the capture the same state: the two paths run bit
+   for bit alike; for the closing capture a state of its own: the paths part at round-off
+   once a closing cable is taut, tests/test_dilu.py, and the capture's chaos grows that),
+   the system's matrix assembled column by column from the solver's own product, and plain PCG
    iteration counts to the scene's tolerance, from the solver's warm start and from zero,
    with block Jacobi (the solver's), symmetric Gauss-Seidel, incomplete Cholesky (IC(0), on
    the matrix's own pattern: two triangular sweeps an application, as Gauss-Seidel's), block
@@ -796,8 +798,12 @@ def main() -> int:
     out = output_dir(args)
     yard = Yardsticks()
     yard.time()
-    cases = {"capture_bending": ("capture", {"bending.enabled": True}, args.capture_at),
-             "capture_closing": ("capture_closing", {}, args.closing_at)}
+    # the run, its iteration parts and its step timed with block Jacobi whatever the scene's
+    # preconditioner; block D-ILU is timed on the same state beside it (solver_dilu)
+    jacobi = {"simulation.preconditioner": "block_jacobi"}
+    cases = {"capture_bending": ("capture", {"bending.enabled": True, **jacobi},
+                                 args.capture_at),
+             "capture_closing": ("capture_closing", jacobi, args.closing_at)}
     doc = {"machine": machine(), "cases": {}}
     for name, (scene_name, overrides, at) in cases.items():
         scene = bn.load_scenario(scene_name, {**overrides, "scene.duration": at + 3.0})

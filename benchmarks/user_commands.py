@@ -10,7 +10,8 @@ to the yardstick measured beside it. With ``--repeats N`` the list runs N times 
 interleaved, and each command reports the medians of its N walls, loops and ratios (each
 ratio to the yardstick timed just before that run) beside all N. ``--only TEXT`` keeps the
 lines that contain TEXT (repeatable); ``--variant KEY=VALUE`` also runs each line with
-``--set KEY=VALUE``, right after it in every repeat (repeatable). Writes
+``--set KEY=VALUE``, right after it in every repeat (repeatable; several settings of one
+variant separated by spaces, each quoted as on a shell line). Writes
 ``OUT/user_commands.json``, or with ``--only`` and ``--variant``
 ``OUT/user_commands_TEXT_KEY_VALUE.json``:
 
@@ -71,17 +72,23 @@ def recording_of(args: list[str], folder: Path) -> Path:
     return folder / f"{bn.load_scenario(scene).scene.name}.h5"
 
 
+def with_settings(variant: str) -> list[str]:
+    """``--set`` arguments of a variant, "KEY=VALUE [KEY=VALUE ...]" (shell-quoted)."""
+    return [arg for kv in shlex.split(variant) for arg in ("--set", kv)]
+
+
 def main() -> int:
     p = parser(__doc__.split("\n\n")[0])
     p.add_argument("--only", action="append", default=[], metavar="TEXT",
                    help="time only the run lines that contain TEXT (repeatable)")
     p.add_argument("--variant", action="append", default=[], metavar="KEY=VALUE",
-                   help="also time each line with --set KEY=VALUE, interleaved (repeatable)")
+                   help="also time each line with --set KEY=VALUE (several: space-separated), "
+                   "interleaved (repeatable)")
     args = p.parse_args()
     out = output_dir(args)
     lines = [variant for line in readme_run_lines()
              if not args.only or any(t in shlex.join(line) for t in args.only)
-             for variant in [line] + [[*line, "--set", kv] for kv in args.variant]]
+             for variant in [line] + [[*line, *with_settings(kv)] for kv in args.variant]]
     if not lines:
         raise SystemExit(f"user_commands: no run line of the README contains {args.only}")
     runs: list[list[dict]] = [[] for _ in lines]
