@@ -387,13 +387,13 @@ def _add_coupling(dilu, e, along, across, e0, e1, e2):
 def _couplings(dilu, along, across, axis, cables, grid_rows):
     """Each coupling's block B [kg] into dilu's off or, between two folded grid nodes, the
     folded layout's rows (:func:`_add_coupling`): its threads' blocks (thread order; a slack
-    one skipped; the grid threads' from the grid's rows ``grid_rows`` = (blocks, eh, ev) on
-    the grid path where its nodes are folded, :func:`_grid_couplings`, else None), then its
-    cable spans' (vertex order; span_edge has an entry, -1, for each cable's last vertex
-    too)."""
+    one skipped; the grid threads' from the grid's rows ``grid_rows`` = (blocks, eh, ev) where
+    its nodes are folded, :func:`_grid_couplings`; else gathered into ``along``, and the grid
+    path's rows ignored, or None on the pair list), then its cable spans' (vertex order;
+    span_edge has an entry, -1, for each cable's last vertex too)."""
     dilu.off[:] = 0.0
     thread_edge, first = dilu.thread_edge, 0
-    if grid_rows is not None:
+    if grid_rows is not None and len(dilu.slots) > 0:
         _grid_couplings(dilu, grid_rows[0], grid_rows[1], grid_rows[2])
         first = dilu.grid_row.shape[0]
     else:

@@ -619,12 +619,11 @@ def _dilu_factor(dilu, grid):
     if len(dilu.slots) == 0:
         dilu_kernels.gather_grid_threads(dilu, grid.blocks, grid.eh, grid.ev, grid.o_along,
                                          grid.o_across, grid.o_axis)
-        dilu_kernels.factor(dilu, grid.block_inv, dilu.along, dilu.across, dilu.axis,
-                            grid.cables, None)
     else:
         dilu_kernels.gather_other_threads(dilu, grid.o_along, grid.o_across, grid.o_axis)
-        dilu_kernels.factor(dilu, grid.block_inv, dilu.along, dilu.across, dilu.axis,
-                            grid.cables, (grid.blocks, grid.eh, grid.ev))
+    # one specialization of the factor whether folded or not (each is compiled in a first run)
+    dilu_kernels.factor(dilu, grid.block_inv, dilu.along, dilu.across, dilu.axis, grid.cables,
+                        (grid.blocks, grid.eh, grid.ev))
     return True
 
 
