@@ -21,29 +21,16 @@ from __future__ import annotations
 import json
 
 import numpy as np
-from cg_step import PairSystemAt, cable_rank_one, direct_neighbours, woodbury_dilu
+from cg_step import PairSystemAt, cable_rank_one, direct_neighbours, plain_pcg, woodbury_dilu
 from common import machine, output_dir, parser
 
 import bulletnet as bn
 
 
 def pcg_error(a, b, x0, tol: float, precondition, exact) -> dict:
-    """Plain PCG from x0 to |b - A x| <= tol |b| (at most 5000 iterations): its iterations,
-    the relative residual reached, and the error x - ``exact`` (see module doc)."""
-    x = x0.copy()
-    r = b - a @ x
-    z = precondition(r)
-    d = z.copy()
-    rz, k, goal = r @ z, 0, tol * np.linalg.norm(b)
-    while np.linalg.norm(r) > goal and k < 5000:
-        ad = a @ d
-        alpha = rz / (d @ ad)
-        x += alpha * d
-        r -= alpha * ad
-        z = precondition(r)
-        rz, previous = r @ z, rz
-        d = z + rz / previous * d
-        k += 1
+    """Plain PCG (:func:`cg_step.plain_pcg`) from x0 to |b - A x| <= tol |b|: its iterations, the
+    relative residual reached, and the error x - ``exact`` (see module doc)."""
+    x, k = plain_pcg(a, b, x0, tol, precondition)
     e = x - exact
     energy = float(e @ a @ e)
     return {"iterations": k,

@@ -582,6 +582,12 @@ class PairSystemAt(At):
 
 def pcg_iterations(matrix, b, x0, tol: float, precondition) -> int:
     """Plain preconditioned CG's iterations from x0 to |b - A x| <= tol |b| (at most 5000)."""
+    return plain_pcg(matrix, b, x0, tol, precondition)[1]
+
+
+def plain_pcg(matrix, b, x0, tol: float, precondition) -> tuple:
+    """Plain preconditioned CG from x0 to |b - A x| <= tol |b| (at most 5000 iterations):
+    the iterate it stops at and its iterations."""
     x = x0.copy()
     r = b - matrix @ x
     z = precondition(r)
@@ -596,7 +602,7 @@ def pcg_iterations(matrix, b, x0, tol: float, precondition) -> int:
         rz, previous = r @ z, rz
         d = z + rz / previous * d
         k += 1
-    return k
+    return x, k
 
 
 def incomplete_cholesky(a) -> np.ndarray:

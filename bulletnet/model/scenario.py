@@ -476,12 +476,14 @@ class Simulation:
     0.662 mm (3.8, 11.6 and 19.1 iterations a step); without bending 1e-4 costs 15-70 % more
     error than 1e-8 (docs/speed.md). Relative to each step's right-hand side, so its error is
     added once a step: a finer step wants a tighter tolerance (the capture's first 20 s at
-    2.5e-4 s: first contact 83 ms early at 3e-4, 4 ms late at 1e-6; docs/capture.md)."""
+    1.25e-4 s: first contact 99 ms early at 1e-4, at 1e-6 the reference; docs/capture.md).
+    The capture scenes take 1e-4 with block D-ILU."""
     preconditioner: str = _f("block_jacobi", "-", "choice", ("block_jacobi", "block_dilu"))
     """Preconditioner of implicit_euler's conjugate gradients: ``block_jacobi`` (each node's
     3 x 3 diagonal block inverted) or ``block_dilu`` (block D-ILU over the threads and the
     cables' spans, the cables' rank-one parts added back by Woodbury: fewer, dearer
-    iterations; bulletnet.solver.dilu, docs/speed.md)."""
+    iterations, and at the same tolerance less error; the capture scenes' choice, with
+    cg_tolerance 1e-4; bulletnet.solver.dilu, docs/speed.md)."""
     kernels: str = _f("grid", "-", "choice", ("grid", "pairs"))
     """Thread kernels of the fast engine: ``grid`` (stencils over the net's rows and columns,
     for an Eq. 1 net; any other model falls back to pairs) or ``pairs`` (one loop over the
