@@ -418,9 +418,12 @@ def test_capture_study_measures_contact_and_reads_an_outcome(tmp_path):
     # scene is conftest.small_capture's, whose net touches the debris within its 1 s; the
     # study varies the debris' lateral offset (a vector component), and reads the
     # recording's root attribute 'outcome' where it has one. At 5e-4 s: this short impact's
-    # snaps are not resolved at the captures' 1e-3 s (one draw's least safety factor 0.70
-    # there; the centred debris's 1.07 against 1.63-1.87 at 1.25e-4-5e-4 s: measured;
-    # docs/strength.md, "The captures' snaps and the step").
+    # snaps are not resolved at the captures' 1e-3 s (docs/strength.md, "The captures' snaps
+    # and the step"). Whether the net holds is not asserted: the second draw's least safety
+    # factor is 0.98 with the solve converged (CG tolerance 1e-6, either preconditioner),
+    # 1.06 with block Jacobi at 1e-4 and 0.95 with the scene's block D-ILU at 1e-4 (measured
+    # 2026-12-07): a snap's peak moves with the solver's error, so the margins are checked
+    # against the recording's own metrics, and the overload flags against the factor.
     import h5py
 
     from bulletnet.studies.measures import CAPTURE_MEASURES
@@ -453,8 +456,9 @@ seed = 1
         assert row["max_wrap"] == bn.metrics.wrap(rec).max() > 0
         assert row["leave_s"] is None and row["outcome"] == rec.attrs["outcome"]
         margin = bn.metrics.safety(rec)
-        assert row["min_safety_factor"] == margin["least_safety_factor"] > 1
-        assert row["overloaded_elements"] == 0 and row["overloaded"] is False
+        assert row["min_safety_factor"] == margin["least_safety_factor"] is not None
+        assert row["overloaded_elements"] == margin["overloaded_elements"]
+        assert row["overloaded"] is (margin["least_safety_factor"] <= 1.0)
         # the energy check is the recording's own (passivity: a sound run has none)
         assert row["max_energy_gain_J"] == bn.metrics.energy_gain(rec) <= 1e-9
     path = tmp_path / "out" / "runs" / "run_00000.h5"
