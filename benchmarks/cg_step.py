@@ -703,6 +703,14 @@ def woodbury_dilu(matrix, lower: list[list[int]], rank_one: list[tuple[float, np
     return lambda r: (lambda z: z - w @ (s_inv @ (g.T @ z)))(base(r))
 
 
+def block_jacobi(matrix):
+    """Block Jacobi, the solver's preconditioner, as a function of r: each node's 3 x 3
+    diagonal block of ``matrix`` (3N x 3N, node-major) inverted."""
+    n = matrix.shape[0] // 3
+    blocks = np.linalg.inv(matrix.reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :])
+    return lambda r: np.einsum("nab,nb->na", blocks, r.reshape(n, 3)).reshape(-1)
+
+
 def preconditioners(taken: dict) -> dict:
     """Iterations by preconditioner, from the warm start and from zero (see module doc)."""
     import scipy.sparse as sp
@@ -711,13 +719,12 @@ def preconditioners(taken: dict) -> dict:
     a = sp.csr_matrix(taken["matrix"])
     b, warm, tol = a @ taken["solution"], taken["warm"], taken["tol"]
     n = a.shape[0] // 3
-    blocks = np.linalg.inv(taken["matrix"].reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n), :])
     lower, upper, diagonal = sp.tril(a, format="csr"), sp.triu(a, format="csr"), a.diagonal()
     factor = sp.csr_matrix(incomplete_cholesky(a))
     direct = direct_neighbours(n, taken)
     factor_t = factor.T.tocsr()
     methods = {
-        "block_jacobi": lambda r: np.einsum("nab,nb->na", blocks, r.reshape(n, 3)).reshape(-1),
+        "block_jacobi": block_jacobi(taken["matrix"]),
         "symmetric_gauss_seidel": lambda r: spsolve_triangular(
             upper, diagonal * spsolve_triangular(lower, r, lower=True), lower=False),
         "incomplete_cholesky": lambda r: spsolve_triangular(
