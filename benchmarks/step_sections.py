@@ -34,7 +34,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from common import Yardsticks, machine, output_dir, parser, user_env
+from common import At, Yardsticks, machine, output_dir, parser, user_env
 
 import bulletnet
 
@@ -139,22 +139,20 @@ def child(scene: str, at: float, span: float, sets: list[str], instrumented: boo
     import numba as nb
 
     import bulletnet as bn
-    from bulletnet.sim.observers import Observer
 
     overrides = {"scene.duration": at + span + 1.0}
     for item in sets:
         key, value = item.split("=", 1)
         overrides[key] = json.loads(value)
 
-    class Stop(Observer):
-        def frame(self, run):
-            self.run = run
-            return run.state.time >= at - 1e-9
+    class Snapshot(At):
+        def act(self, engine, state):
+            return engine, state
 
-    stop = Stop()
+    snapshot = Snapshot(at)
     scenario = bn.load_scenario(scene, overrides)
-    bn.run(scenario, None, observers=[stop])
-    engine, state = stop.run.engine, stop.run.state
+    bn.run(scenario, None, observers=[snapshot])
+    engine, state = snapshot.taken
     engine.advance(state, state.time + 0.05)  # the loop's compiled version resolved
     counters = engine.work.cg_iterations
     counters[:] = 0
