@@ -9,6 +9,7 @@ import math
 import numba as nb
 import numpy as np
 import pytest
+from conftest import small_capture
 from scipy.integrate import solve_ivp
 
 import bulletnet as bn
@@ -295,10 +296,10 @@ def test_debris_alone_keeps_its_spin_and_mass_properties(tmp_path):
     # References: torque-free rotation about a principal axis (spin rate and angular
     # momentum constant) over the paper's 120 s; the recorded mass and inertia are the
     # asset's computed ones (bulletnet.model.debris, checked against quadrature in test_debris).
-    # (The net, far away, is the small capture's 6 x 6: its size is a compile-time constant
-    # of block D-ILU, so another would compile a step loop of its own.)
-    scene = bn.load_scenario("capture", {
-        "net.nodes_per_side": 6, "net.mesh_length": 1.0, "debris.position": [0.0, 0.0, 1e4],
+    # (The net, far away, is the small capture's: its size is a compile-time constant of
+    # block D-ILU, so another would compile a step loop of its own. The debris at rest.)
+    scene = small_capture(**{
+        "debris.position": [0.0, 0.0, 1e4], "debris.velocity": [0.0, 0.0, 0.0],
         "scene.duration": 120.0, "simulation.dt": 0.01, "simulation.record_rate": 1.0})
     rec_path = bn.run(scene, tmp_path / "alone.h5").path
     import h5py
