@@ -50,6 +50,7 @@ from common import (
 )
 
 import bulletnet as bn
+from bulletnet.common import llvm_options
 from bulletnet.solver import grid as G
 from bulletnet.solver.grid import ONE, U
 
@@ -81,6 +82,7 @@ def _tension_only(x, v, off, rest, k, c, out, count, ns):
         out[0, t + ns] = G._row_tension(x, v, t, t + off, rest, k, c)[0]
 
 
+@llvm_options.interleave  # compiled as the free loop that these passes stand for
 @nb.njit(error_model="numpy", _nrt=False)
 def _probe(g, level, calls):
     """``calls`` times both stencils' work up to ``level`` (0: sqrt and reciprocal, 1: the
@@ -99,6 +101,7 @@ def _probe(g, level, calls):
             G._tension_stencil(x, v, ns, g.v_rest, g.v_k, g.v_c, g.tv, w, ns)
 
 
+@llvm_options.interleave  # compiled as the free loop that these passes stand for
 @nb.njit(error_model="numpy", _nrt=False)
 def _node_pass(g, dt, calls, base):
     """``calls`` node passes of the free step (no bending, no increment kept; ``base`` as
@@ -107,12 +110,14 @@ def _node_pass(g, dt, calls, base):
         G.node_pass(g, dt, None, False, base)
 
 
+@llvm_options.interleave  # compiled as the free loop that these passes stand for
 @nb.njit(error_model="numpy", _nrt=False)
 def _peaks(g, peaks, calls):
     for _ in range(calls):
         G.track_peaks(g, peaks)
 
 
+@llvm_options.interleave  # compiled as the free loop that these passes stand for
 @nb.njit(error_model="numpy", _nrt=False)
 def _others(g, views, dt, calls):
     for _ in range(calls):

@@ -12,9 +12,9 @@ compile with its entries inlined so, 2.3 s without (docs/development.md)."""
 
 import numba as nb
 
-from ..common import ordered_sums
+from ..common import llvm_options
 
-ordered_sums.enable()  # before any kernel is compiled
+llvm_options.enable()  # before any kernel is compiled
 
 U = nb.uint64
 """Indices are unsigned in the kernels: numba then skips the negative-index wraparound, which

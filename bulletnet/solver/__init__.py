@@ -1,6 +1,6 @@
 """One step and the compiled loop: thread stencils and pair lists, the implicit solver, the contact
 stage."""
 
-from ..common import ordered_sums
+from ..common import llvm_options
 
-ordered_sums.enable()  # before any kernel is compiled
+llvm_options.enable()  # before any kernel is compiled

@@ -15,7 +15,7 @@ layout, and hand :func:`solve` the operations that depend on it, as compiled fun
   element by element), then z = those inverse blocks times r, node by node (zero on a clamped
   node's rows; or block D-ILU's sweeps), returning the sums r . z and r . r of
   :func:`dot_terms` over the nodes in node order, all in one pass (a sum in order is a chain
-  of additions; the pass's other work runs beside it: :mod:`bulletnet.common.ordered_sums`);
+  of additions; the pass's other work runs beside it: :mod:`bulletnet.common.llvm_options`);
 - ``components(x)``: x as component rows, x[a, i] component a of node i, shape (3, >= N):
   the grid's rows themselves, the transpose of a pair-list array.
 
