@@ -68,7 +68,7 @@ class _Interleaved(event.Listener):
         ll.set_option("bulletnet", f"-force-vector-interleave={count}")
 
     def on_start(self, e: event.Event) -> None:
-        registered = e.data["dispatcher"].py_func in _INTERLEAVED
+        registered = getattr(e.data.get("dispatcher"), "py_func", None) in _INTERLEAVED
         self.stack.append(INTERLEAVE if registered else 0)
         self._set()
 
